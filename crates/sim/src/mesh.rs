@@ -1,0 +1,237 @@
+//! Triangle meshes: Wavefront OBJ reading/writing and URDF primitives.
+use crate::error::{Result, SimError};
+use crate::math::{Pose3, Vec3};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// An indexed triangle mesh in some frame named by its owner.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriMesh {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriMesh {
+    pub fn append(&mut self, other: &TriMesh) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.triangles
+            .extend(other.triangles.iter().map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+    }
+
+    pub fn transformed(&self, pose: &Pose3) -> TriMesh {
+        TriMesh {
+            positions: self.positions.iter().map(|p| pose.transform_point(*p)).collect(),
+            triangles: self.triangles.clone(),
+        }
+    }
+
+    pub fn scaled(&self, scale: Vec3) -> TriMesh {
+        TriMesh {
+            positions: self.positions.iter().map(|p| *p * scale).collect(),
+            triangles: self.triangles.clone(),
+        }
+    }
+
+    /// Axis-aligned bounds, or None for an empty mesh.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let first = *self.positions.first()?;
+        Some(self.positions.iter().fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))))
+    }
+
+    /// Axis-aligned box centred at the origin with the given full size.
+    pub fn cuboid(size: Vec3) -> TriMesh {
+        let h = size * 0.5;
+        let positions = (0..8)
+            .map(|i| {
+                Vec3::new(
+                    if i & 1 == 0 { -h.x } else { h.x },
+                    if i & 2 == 0 { -h.y } else { h.y },
+                    if i & 4 == 0 { -h.z } else { h.z },
+                )
+            })
+            .collect();
+        // Counter-clockwise seen from outside.
+        let triangles = vec![
+            [0, 2, 1], [1, 2, 3], // -z
+            [4, 5, 6], [5, 7, 6], // +z
+            [0, 1, 4], [1, 5, 4], // -y
+            [2, 6, 3], [3, 6, 7], // +y
+            [0, 4, 2], [2, 4, 6], // -x
+            [1, 3, 5], [3, 7, 5], // +x
+        ];
+        TriMesh { positions, triangles }
+    }
+
+    /// Cylinder along +Z centred at the origin (URDF convention).
+    pub fn cylinder(radius: f32, length: f32, segments: u32) -> TriMesh {
+        let n = segments.max(3);
+        let h = length * 0.5;
+        let mut positions = Vec::with_capacity(2 * n as usize + 2);
+        for i in 0..n {
+            let a = i as f32 / n as f32 * std::f32::consts::TAU;
+            let (s, c) = a.sin_cos();
+            positions.push(Vec3::new(radius * c, radius * s, -h));
+            positions.push(Vec3::new(radius * c, radius * s, h));
+        }
+        let bottom = positions.len() as u32;
+        positions.push(Vec3::new(0.0, 0.0, -h));
+        positions.push(Vec3::new(0.0, 0.0, h));
+        let top = bottom + 1;
+        let mut triangles = Vec::with_capacity(4 * n as usize);
+        for i in 0..n {
+            let j = (i + 1) % n;
+            let (b0, t0, b1, t1) = (2 * i, 2 * i + 1, 2 * j, 2 * j + 1);
+            triangles.push([b0, b1, t0]);
+            triangles.push([t0, b1, t1]);
+            triangles.push([bottom, b1, b0]);
+            triangles.push([top, t0, t1]);
+        }
+        TriMesh { positions, triangles }
+    }
+
+    /// UV sphere centred at the origin.
+    pub fn sphere(radius: f32, rings: u32, segments: u32) -> TriMesh {
+        let (rings, segments) = (rings.max(2), segments.max(3));
+        let mut positions = Vec::new();
+        for r in 0..=rings {
+            let theta = r as f32 / rings as f32 * std::f32::consts::PI;
+            for s in 0..segments {
+                let phi = s as f32 / segments as f32 * std::f32::consts::TAU;
+                positions.push(
+                    radius
+                        * Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()),
+                );
+            }
+        }
+        let mut triangles = Vec::new();
+        for r in 0..rings {
+            for s in 0..segments {
+                let a = r * segments + s;
+                let b = r * segments + (s + 1) % segments;
+                let c = a + segments;
+                let d = b + segments;
+                triangles.push([a, c, b]);
+                triangles.push([b, c, d]);
+            }
+        }
+        TriMesh { positions, triangles }
+    }
+
+    /// Reads a Wavefront OBJ file: `v` and `f` records (polygons are fanned;
+    /// `v/vt/vn` and negative indices accepted); everything else ignored.
+    pub fn read_obj(path: &Path) -> Result<TriMesh> {
+        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse_obj(&text, path)
+    }
+
+    pub fn parse_obj(text: &str, path: &Path) -> Result<TriMesh> {
+        let err = |line: usize, what: String| SimError::Mesh { file: path.to_path_buf(), line, what };
+        let mut mesh = TriMesh::default();
+        let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
+        for (i, line) in text.lines().enumerate() {
+            let lineno = i + 1;
+            let mut it = line.split_whitespace();
+            match it.next() {
+                Some("v") => {
+                    let mut xyz = [0f32; 3];
+                    for c in &mut xyz {
+                        let tok = it
+                            .next()
+                            .ok_or_else(|| err(lineno, "vertex needs 3 coordinates".into()))?;
+                        *c = tok.parse().map_err(|_| {
+                            err(lineno, format!("vertex coordinate `{tok}` is not a number"))
+                        })?;
+                        if !c.is_finite() {
+                            return Err(err(lineno, format!("vertex coordinate `{tok}` is not finite")));
+                        }
+                    }
+                    mesh.positions.push(Vec3::from(xyz));
+                }
+                Some("f") => {
+                    let idx = it
+                        .map(|tok| {
+                            let first = tok.split('/').next().unwrap_or("");
+                            first.parse::<i64>().map_err(|_| {
+                                err(lineno, format!("face index `{tok}` is not an integer"))
+                            })
+                        })
+                        .collect::<Result<Vec<_>>>()?;
+                    if idx.len() < 3 {
+                        return Err(err(lineno, "face needs at least 3 vertices".into()));
+                    }
+                    faces.push((lineno, idx));
+                }
+                _ => {}
+            }
+        }
+        let n = mesh.positions.len() as i64;
+        for (lineno, idx) in faces {
+            let resolved = idx
+                .iter()
+                .map(|&k| {
+                    let r = if k < 0 { n + k } else { k - 1 };
+                    if (0..n).contains(&r) {
+                        Ok(r as u32)
+                    } else {
+                        Err(err(lineno, format!("face index {k} out of range 1..={n}")))
+                    }
+                })
+                .collect::<Result<Vec<_>>>()?;
+            for k in 1..resolved.len() - 1 {
+                mesh.triangles.push([resolved[0], resolved[k], resolved[k + 1]]);
+            }
+        }
+        if mesh.triangles.is_empty() {
+            return Err(err(0, "mesh has no faces".into()));
+        }
+        Ok(mesh)
+    }
+
+    pub fn to_obj(&self) -> String {
+        let mut s = String::with_capacity(self.positions.len() * 32 + self.triangles.len() * 16);
+        for p in &self.positions {
+            let _ = writeln!(s, "v {:.6} {:.6} {:.6}", p.x, p.y, p.z);
+        }
+        for t in &self.triangles {
+            let _ = writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn obj_roundtrip_and_polygon_fan() {
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1/1/1 2/2/2 3 4\n";
+        let m = TriMesh::parse_obj(text, Path::new("q.obj")).unwrap();
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+        let again = TriMesh::parse_obj(&m.to_obj(), Path::new("q.obj")).unwrap();
+        assert_eq!(again, m);
+    }
+
+    #[test]
+    fn obj_errors_name_line() {
+        let e = TriMesh::parse_obj("v 0 0 0\nv 1 x 0\n", Path::new("bad.obj")).unwrap_err();
+        assert_eq!(e.to_string(), "bad.obj:2: vertex coordinate `x` is not a number");
+        let e = TriMesh::parse_obj("v 0 0 0\nf 1 2 3\n", Path::new("b.obj")).unwrap_err();
+        assert!(e.to_string().contains("b.obj:2: face index 2 out of range"), "{e}");
+    }
+
+    #[test]
+    fn cuboid_faces_point_outward() {
+        let m = TriMesh::cuboid(Vec3::new(1.0, 2.0, 3.0));
+        for t in &m.triangles {
+            let [a, b, c] = t.map(|i| m.positions[i as usize]);
+            let n = (b - a).cross(c - a);
+            let centre = (a + b + c) / 3.0;
+            assert!(n.dot(centre) > 0.0, "inward face {t:?}");
+        }
+    }
+}

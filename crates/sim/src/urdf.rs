@@ -1,0 +1,483 @@
+//! URDF loading: a mending pass over the raw XML (PartNet-Mobility quirks),
+//! urdf-rs for the structure, then validation into an [`ObjectModel`].
+//!
+//! Errors name the file, the element (with its line) and what was expected.
+use crate::error::{Result, SimError};
+use crate::math::{Mat3, Pose3, Quat, Vec3};
+use crate::mesh::TriMesh;
+use std::collections::{HashMap, HashSet};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JointKind {
+    Fixed,
+    Revolute,
+    Continuous,
+    Prismatic,
+}
+
+impl JointKind {
+    pub fn is_movable(self) -> bool {
+        self != JointKind::Fixed
+    }
+    pub fn is_prismatic(self) -> bool {
+        self == JointKind::Prismatic
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct VisualModel {
+    /// Mesh in the link frame (origin and scale applied).
+    pub mesh_in_link: TriMesh,
+    pub color: [f32; 3],
+}
+
+#[derive(Clone, Debug)]
+pub struct LinkModel {
+    pub name: String,
+    pub visuals: Vec<VisualModel>,
+    pub mass: f32,
+    pub com_in_link: Vec3,
+    /// Inertia tensor about the centre of mass, in link axes.
+    pub inertia_in_link: Mat3,
+    /// True when the file gave no `<inertial>` and one was derived.
+    pub inertial_derived: bool,
+}
+
+#[derive(Clone, Debug)]
+pub struct JointModel {
+    pub name: String,
+    pub kind: JointKind,
+    pub parent: usize,
+    pub child: usize,
+    /// Joint frame (= child frame at joint value 0) in the parent link frame.
+    pub parent_from_joint: Pose3,
+    /// Unit axis in the joint frame.
+    pub axis_in_joint: Vec3,
+    /// Limits; continuous joints have (-inf, inf).
+    pub lower: f32,
+    pub upper: f32,
+    pub damping: f32,
+    pub friction: f32,
+}
+
+/// A loaded, validated articulated object: a tree of links rooted at `root`.
+#[derive(Clone, Debug)]
+pub struct ObjectModel {
+    pub source: PathBuf,
+    pub name: String,
+    pub links: Vec<LinkModel>,
+    /// Joints ordered so that every parent link appears before its child.
+    pub joints: Vec<JointModel>,
+    pub root: usize,
+}
+
+impl ObjectModel {
+    pub fn movable_joints(&self) -> impl Iterator<Item = (usize, &JointModel)> {
+        self.joints.iter().enumerate().filter(|(_, j)| j.kind.is_movable())
+    }
+    pub fn joint_by_name(&self, name: &str) -> Option<usize> {
+        self.joints.iter().position(|j| j.name == name)
+    }
+    /// The joint whose child is `link`, if any.
+    pub fn parent_joint_of(&self, link: usize) -> Option<usize> {
+        self.joints.iter().position(|j| j.child == link)
+    }
+}
+
+const NUMERIC_ATTRS: &[&str] = &[
+    "xyz", "rpy", "lower", "upper", "effort", "velocity", "value", "ixx", "ixy", "ixz", "iyy",
+    "iyz", "izz", "radius", "length", "size", "scale", "rgba", "damping", "friction",
+];
+
+/// Reads and validates a URDF file.
+pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
+    let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    parse_urdf(&text, path)
+}
+
+fn urdf_err(file: &Path, what: impl Into<String>) -> SimError {
+    SimError::Urdf { file: file.to_path_buf(), what: what.into() }
+}
+
+/// Parses URDF text; `path` names the file in errors and anchors relative mesh paths.
+pub fn parse_urdf(text: &str, path: &Path) -> Result<ObjectModel> {
+    let doc = roxmltree::Document::parse(text)
+        .map_err(|e| urdf_err(path, format!("not well-formed XML: {e}")))?;
+    let root = doc.root_element();
+    if root.tag_name().name() != "robot" {
+        return Err(urdf_err(path, format!("root element is <{}>, expected <robot>", root.tag_name().name())));
+    }
+    let line_of = |n: roxmltree::Node| doc.text_pos_at(n.range().start).row;
+    let mut mended = String::with_capacity(text.len() + 256);
+    mend(root, path, &line_of, &mut mended)?;
+    let with_inertial: HashSet<String> = root
+        .children()
+        .filter(|n| n.has_tag_name("link") && n.children().any(|c| c.has_tag_name("inertial")))
+        .filter_map(|n| n.attribute("name").map(str::to_owned))
+        .collect();
+    let joint_lines: HashMap<String, u32> = root
+        .children()
+        .filter(|n| n.has_tag_name("joint"))
+        .filter_map(|n| Some((n.attribute("name")?.to_owned(), line_of(n))))
+        .collect();
+    let robot = urdf_rs::read_from_string(&mended)
+        .map_err(|e| urdf_err(path, format!("invalid URDF: {e}")))?;
+    build_model(robot, path, &with_inertial, &joint_lines)
+}
+
+/// Writes the element back out as XML, fixing what PartNet-Mobility files get
+/// wrong: `<limit>` without velocity/effort and stray characters in numbers.
+fn mend(
+    node: roxmltree::Node,
+    path: &Path,
+    line_of: &dyn Fn(roxmltree::Node) -> u32,
+    out: &mut String,
+) -> Result<()> {
+    let name = node.tag_name().name();
+    let _ = write!(out, "<{name}");
+    for a in node.attributes() {
+        let value = if NUMERIC_ATTRS.contains(&a.name()) && !(name == "material" || name == "link" || name == "joint") {
+            mend_numbers(a.value()).ok_or_else(|| {
+                urdf_err(
+                    path,
+                    format!(
+                        "<{name}> at line {}: attribute {}=\"{}\" is not a list of numbers",
+                        line_of(node),
+                        a.name(),
+                        a.value()
+                    ),
+                )
+            })?
+        } else {
+            a.value().to_owned()
+        };
+        let _ = write!(out, " {}=\"{}\"", a.name(), escape(&value));
+    }
+    if name == "limit" {
+        for (attr, default) in [("velocity", "1.0"), ("effort", "100.0")] {
+            if node.attribute(attr).is_none() {
+                let _ = write!(out, " {attr}=\"{default}\"");
+            }
+        }
+    }
+    out.push('>');
+    for child in node.children() {
+        if child.is_element() {
+            mend(child, path, line_of, out)?;
+        } else if let Some(t) = child.text() {
+            out.push_str(&escape(t));
+        }
+    }
+    let _ = write!(out, "</{name}>");
+    Ok(())
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('"', "&quot;")
+}
+
+/// Keeps each whitespace-separated token that is a number, or the longest
+/// numeric prefix of one with stray characters (`0.5,` -> `0.5`).
+fn mend_numbers(value: &str) -> Option<String> {
+    let mut parts = Vec::new();
+    for tok in value.split(|c: char| c.is_whitespace() || c == ',').filter(|t| !t.is_empty()) {
+        if tok.parse::<f64>().is_ok() {
+            parts.push(tok.to_owned());
+            continue;
+        }
+        let prefix = (1..tok.len())
+            .rev()
+            .filter(|&k| tok.is_char_boundary(k))
+            .map(|k| &tok[..k])
+            .find(|p| p.parse::<f64>().is_ok())?;
+        parts.push(prefix.to_owned());
+    }
+    (!parts.is_empty()).then(|| parts.join(" "))
+}
+
+fn pose_of(p: &urdf_rs::Pose) -> Pose3 {
+    let [x, y, z] = p.xyz.0.map(|v| v as f32);
+    let [r, pi, yaw] = p.rpy.0.map(|v| v as f32);
+    Pose3::from_parts(
+        Vec3::new(x, y, z),
+        Quat::from_euler(glam_euler_zyx(), yaw, pi, r),
+    )
+}
+
+fn glam_euler_zyx() -> rapier3d::glamx::EulerRot {
+    rapier3d::glamx::EulerRot::ZYX
+}
+
+fn geometry_mesh(g: &urdf_rs::Geometry, base_dir: &Path, file: &Path, link: &str) -> Result<TriMesh> {
+    Ok(match g {
+        urdf_rs::Geometry::Box { size } => TriMesh::cuboid(Vec3::from(size.0.map(|v| v as f32))),
+        urdf_rs::Geometry::Cylinder { radius, length } => {
+            TriMesh::cylinder(*radius as f32, *length as f32, 24)
+        }
+        urdf_rs::Geometry::Capsule { radius, length } => {
+            TriMesh::cylinder(*radius as f32, *length as f32 + 2.0 * *radius as f32, 24)
+        }
+        urdf_rs::Geometry::Sphere { radius } => TriMesh::sphere(*radius as f32, 12, 24),
+        urdf_rs::Geometry::Mesh { filename, scale } => {
+            let rel = filename.trim_start_matches("package://").trim_start_matches("file://");
+            let mesh_path = base_dir.join(rel);
+            let ext = mesh_path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+            if ext != "obj" {
+                return Err(urdf_err(
+                    file,
+                    format!("link `{link}`: mesh {} is not a Wavefront .obj file (the only mesh format supported)", mesh_path.display()),
+                ));
+            }
+            if !mesh_path.is_file() {
+                return Err(urdf_err(file, format!("link `{link}`: mesh file {} not found", mesh_path.display())));
+            }
+            let mesh = TriMesh::read_obj(&mesh_path)?;
+            match scale {
+                Some(s) => mesh.scaled(Vec3::from(s.0.map(|v| v as f32))),
+                None => mesh,
+            }
+        }
+    })
+}
+
+fn material_color(m: &Option<urdf_rs::Material>, named: &HashMap<String, [f32; 3]>) -> [f32; 3] {
+    const DEFAULT: [f32; 3] = [0.7, 0.7, 0.7];
+    match m {
+        Some(m) => match &m.color {
+            Some(c) => [c.rgba.0[0] as f32, c.rgba.0[1] as f32, c.rgba.0[2] as f32],
+            None => named.get(&m.name).copied().unwrap_or(DEFAULT),
+        },
+        None => DEFAULT,
+    }
+}
+
+fn build_model(
+    robot: urdf_rs::Robot,
+    path: &Path,
+    with_inertial: &HashSet<String>,
+    joint_lines: &HashMap<String, u32>,
+) -> Result<ObjectModel> {
+    let base_dir = path.parent().unwrap_or(Path::new("."));
+    if robot.links.is_empty() {
+        return Err(urdf_err(path, "no <link> elements"));
+    }
+    let named_colors: HashMap<String, [f32; 3]> = robot
+        .materials
+        .iter()
+        .filter_map(|m| m.color.as_ref().map(|c| (m.name.clone(), [c.rgba.0[0] as f32, c.rgba.0[1] as f32, c.rgba.0[2] as f32])))
+        .collect();
+    let mut link_index = HashMap::new();
+    let mut links = Vec::with_capacity(robot.links.len());
+    for (i, l) in robot.links.iter().enumerate() {
+        if link_index.insert(l.name.clone(), i).is_some() {
+            return Err(urdf_err(path, format!("two links are named `{}`", l.name)));
+        }
+        let mut visuals = Vec::new();
+        for v in &l.visual {
+            let mesh = geometry_mesh(&v.geometry, base_dir, path, &l.name)?.transformed(&pose_of(&v.origin));
+            visuals.push(VisualModel { mesh_in_link: mesh, color: material_color(&v.material, &named_colors) });
+        }
+        let (mass, com, inertia, derived) = if with_inertial.contains(&l.name) {
+            let i = &l.inertial;
+            let m = i.mass.value as f32;
+            if !(m.is_finite() && m > 0.0) {
+                return Err(urdf_err(path, format!("link `{}`: <mass value> must be a positive number, found {}", l.name, i.mass.value)));
+            }
+            let t = &i.inertia;
+            let local = Mat3::from_cols_array(&[
+                t.ixx as f32, t.ixy as f32, t.ixz as f32, t.ixy as f32, t.iyy as f32, t.iyz as f32,
+                t.ixz as f32, t.iyz as f32, t.izz as f32,
+            ]);
+            let frame = pose_of(&i.origin);
+            let r = Mat3::from_quat(frame.rotation);
+            (m, frame.translation, r * local * r.transpose(), false)
+        } else {
+            // PartNet-Mobility links carry no <inertial>: mass 1 and the inertia
+            // of a solid box filling the collision (else visual) bounds.
+            let mut shape = TriMesh::default();
+            for c in &l.collision {
+                shape.append(&geometry_mesh(&c.geometry, base_dir, path, &l.name)?.transformed(&pose_of(&c.origin)));
+            }
+            if shape.positions.is_empty() {
+                for v in &visuals {
+                    shape.append(&v.mesh_in_link);
+                }
+            }
+            let (lo, hi) = shape.bounds().unwrap_or((Vec3::splat(-0.05), Vec3::splat(0.05)));
+            let s = (hi - lo).max(Vec3::splat(0.01));
+            let m = 1.0f32;
+            let d = Vec3::new(s.y * s.y + s.z * s.z, s.x * s.x + s.z * s.z, s.x * s.x + s.y * s.y) * (m / 12.0);
+            (m, (lo + hi) * 0.5, Mat3::from_diagonal(d), true)
+        };
+        links.push(LinkModel {
+            name: l.name.clone(),
+            visuals,
+            mass,
+            com_in_link: com,
+            inertia_in_link: inertia,
+            inertial_derived: derived,
+        });
+    }
+
+    let mut joints = Vec::with_capacity(robot.joints.len());
+    let mut parent_of: HashMap<usize, String> = HashMap::new();
+    for j in &robot.joints {
+        let at = joint_lines.get(&j.name).map(|l| format!(" at line {l}")).unwrap_or_default();
+        let jerr = |what: String| urdf_err(path, format!("<joint name=\"{}\">{at}: {what}", j.name));
+        let kind = match &j.joint_type {
+            urdf_rs::JointType::Fixed => JointKind::Fixed,
+            urdf_rs::JointType::Revolute => JointKind::Revolute,
+            urdf_rs::JointType::Continuous => JointKind::Continuous,
+            urdf_rs::JointType::Prismatic => JointKind::Prismatic,
+            other => {
+                return Err(jerr(format!("joint type {other:?} is not supported (expected fixed, revolute, continuous or prismatic)")));
+            }
+        };
+        let parent = *link_index
+            .get(&j.parent.link)
+            .ok_or_else(|| jerr(format!("parent link `{}` does not exist", j.parent.link)))?;
+        let child = *link_index
+            .get(&j.child.link)
+            .ok_or_else(|| jerr(format!("child link `{}` does not exist", j.child.link)))?;
+        if let Some(other) = parent_of.insert(child, j.name.clone()) {
+            return Err(jerr(format!(
+                "link `{}` is already the child of joint `{other}`: kinematic loop (a URDF must be a tree)",
+                j.child.link
+            )));
+        }
+        let axis = Vec3::from(j.axis.xyz.0.map(|v| v as f32));
+        if kind.is_movable() && !(axis.is_finite() && axis.length() > 1e-6) {
+            return Err(jerr(format!("<axis xyz> must be a non-zero finite vector, found {:?}", j.axis.xyz.0)));
+        }
+        let (lower, upper) = match kind {
+            JointKind::Revolute | JointKind::Prismatic => {
+                let (lo, hi) = (j.limit.lower, j.limit.upper);
+                if !lo.is_finite() || !hi.is_finite() {
+                    return Err(jerr(format!("<limit> lower/upper must be finite numbers, found lower={lo} upper={hi}")));
+                }
+                if lo > hi {
+                    return Err(jerr(format!("<limit> lower ({lo}) is greater than upper ({hi})")));
+                }
+                (lo as f32, hi as f32)
+            }
+            JointKind::Continuous => (f32::NEG_INFINITY, f32::INFINITY),
+            JointKind::Fixed => (0.0, 0.0),
+        };
+        let (damping, friction) = j.dynamics.as_ref().map(|d| (d.damping as f32, d.friction as f32)).unwrap_or((0.0, 0.0));
+        if !(damping.is_finite() && damping >= 0.0 && friction.is_finite() && friction >= 0.0) {
+            return Err(jerr(format!("<dynamics> damping/friction must be non-negative numbers, found {damping}/{friction}")));
+        }
+        joints.push(JointModel {
+            name: j.name.clone(),
+            kind,
+            parent,
+            child,
+            parent_from_joint: pose_of(&j.origin),
+            axis_in_joint: if kind.is_movable() { axis.normalize() } else { Vec3::X },
+            lower,
+            upper,
+            damping,
+            friction,
+        });
+    }
+    let roots: Vec<usize> = (0..links.len()).filter(|i| !parent_of.contains_key(i)).collect();
+    let root = match roots.as_slice() {
+        [r] => *r,
+        [] => return Err(urdf_err(path, "every link has a parent joint: kinematic loop, no root link")),
+        many => {
+            let names: Vec<&str> = many.iter().map(|&i| links[i].name.as_str()).collect();
+            return Err(urdf_err(path, format!("links {names:?} have no parent joint: expected one connected tree with a single root")));
+        }
+    };
+    // Order joints root-first; a joint left unordered sits on a cycle detached from the root.
+    let mut ordered = Vec::with_capacity(joints.len());
+    let mut reached = vec![false; links.len()];
+    reached[root] = true;
+    let mut frontier = vec![root];
+    while let Some(l) = frontier.pop() {
+        for j in joints.iter().filter(|j| j.parent == l) {
+            reached[j.child] = true;
+            frontier.push(j.child);
+            ordered.push(j.clone());
+        }
+    }
+    if let Some(i) = reached.iter().position(|r| !r) {
+        return Err(urdf_err(path, format!("link `{}` is not connected to the root `{}`: kinematic loop", links[i].name, links[root].name)));
+    }
+    Ok(ObjectModel {
+        source: path.to_path_buf(),
+        name: robot.name,
+        links,
+        joints: ordered,
+        root,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wrap(body: &str) -> String {
+        format!("<?xml version=\"1.0\"?><robot name=\"t\">{body}</robot>")
+    }
+    const BASE: &str = r#"<link name="base"><visual><geometry><box size="1 1 1"/></geometry></visual></link>
+<link name="door"><visual><geometry><box size="0.1 1 1"/></geometry></visual></link>"#;
+
+    fn err_of(body: &str) -> String {
+        parse_urdf(&wrap(body), Path::new("obj/mobility.urdf")).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn partnet_limit_without_velocity_and_stray_chars_load() {
+        let m = parse_urdf(
+            &wrap(&format!(
+                r#"{BASE}<joint name="j" type="revolute"><origin xyz="0 0 0,"/><axis xyz="0 0 1"/>
+                <parent link="base"/><child link="door"/><limit lower="0" upper="1.57x"/></joint>"#
+            )),
+            Path::new("m.urdf"),
+        )
+        .unwrap();
+        assert_eq!(m.joints.len(), 1);
+        assert!((m.joints[0].upper - 1.57).abs() < 1e-6);
+        assert!(m.links[1].inertial_derived);
+        assert_eq!(m.links[1].mass, 1.0);
+    }
+
+    #[test]
+    fn errors_name_file_element_and_expectation() {
+        assert!(err_of("<link name=\"a\"").starts_with("obj/mobility.urdf: not well-formed XML"));
+        let e = err_of(&format!(
+            r#"{BASE}<joint name="j" type="revolute"><parent link="base"/><child link="lid"/><axis xyz="0 0 1"/><limit lower="0" upper="1"/></joint>"#
+        ));
+        assert!(e.contains("<joint name=\"j\"> at line") && e.contains("child link `lid` does not exist"), "{e}");
+        let e = err_of(&format!(
+            r#"{BASE}<joint name="j" type="prismatic"><parent link="base"/><child link="door"/><axis xyz="1 0 0"/><limit lower="NaN" upper="1"/></joint>"#
+        ));
+        assert!(e.contains("must be finite"), "{e}");
+        let e = err_of(&format!(
+            r#"{BASE}<joint name="j" type="prismatic"><parent link="base"/><child link="door"/><axis xyz="1 0 0"/><limit lower="2" upper="1"/></joint>"#
+        ));
+        assert!(e.contains("lower (2) is greater than upper (1)"), "{e}");
+        let e = err_of(&format!(
+            r#"{BASE}<joint name="a" type="fixed"><parent link="base"/><child link="door"/></joint>
+               <joint name="b" type="fixed"><parent link="door"/><child link="base"/></joint>"#
+        ));
+        assert!(e.contains("kinematic loop"), "{e}");
+        let e = err_of(r#"<link name="a"><visual><geometry><mesh filename="textured_objs/x.obj"/></geometry></visual></link>"#);
+        assert!(e.contains("mesh file obj/textured_objs/x.obj not found"), "{e}");
+        let e = err_of(&format!(
+            r#"{BASE}<joint name="j" type="revolute"><parent link="base"/><child link="door"/><axis xyz="0 0 0"/><limit lower="0" upper="1"/></joint>"#
+        ));
+        assert!(e.contains("non-zero"), "{e}");
+        let e = err_of(&format!(
+            r#"{BASE}<joint name="j" type="floating"><parent link="base"/><child link="door"/></joint>"#
+        ));
+        assert!(e.contains("not supported"), "{e}");
+    }
+}
