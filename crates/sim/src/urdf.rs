@@ -107,6 +107,14 @@ fn urdf_err(file: &Path, what: impl Into<String>) -> SimError {
 
 /// Parses URDF text; `path` names the file in errors and anchors relative mesh paths.
 pub fn parse_urdf(text: &str, path: &Path) -> Result<ObjectModel> {
+    parse_urdf_with(text, path, &|_| None)
+}
+
+/// Supplies meshes by path before the disk is asked (in-memory generated objects).
+pub type MeshSource<'a> = &'a dyn Fn(&Path) -> Option<TriMesh>;
+
+/// As [`parse_urdf`], with meshes looked up in `meshes` first.
+pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<ObjectModel> {
     let doc = roxmltree::Document::parse(text)
         .map_err(|e| urdf_err(path, format!("not well-formed XML: {e}")))?;
     let root = doc.root_element();
@@ -128,7 +136,7 @@ pub fn parse_urdf(text: &str, path: &Path) -> Result<ObjectModel> {
         .collect();
     let robot = urdf_rs::read_from_string(&mended)
         .map_err(|e| urdf_err(path, format!("invalid URDF: {e}")))?;
-    build_model(robot, path, &with_inertial, &joint_lines)
+    build_model(robot, path, &with_inertial, &joint_lines, meshes)
 }
 
 /// Writes the element back out as XML, fixing what PartNet-Mobility files get
@@ -214,7 +222,13 @@ fn glam_euler_zyx() -> rapier3d::glamx::EulerRot {
     rapier3d::glamx::EulerRot::ZYX
 }
 
-fn geometry_mesh(g: &urdf_rs::Geometry, base_dir: &Path, file: &Path, link: &str) -> Result<TriMesh> {
+fn geometry_mesh(
+    g: &urdf_rs::Geometry,
+    base_dir: &Path,
+    file: &Path,
+    link: &str,
+    meshes: MeshSource,
+) -> Result<TriMesh> {
     Ok(match g {
         urdf_rs::Geometry::Box { size } => TriMesh::cuboid(Vec3::from(size.0.map(|v| v as f32))),
         urdf_rs::Geometry::Cylinder { radius, length } => {
@@ -228,6 +242,12 @@ fn geometry_mesh(g: &urdf_rs::Geometry, base_dir: &Path, file: &Path, link: &str
             let rel = filename.trim_start_matches("package://").trim_start_matches("file://");
             let mesh_path = base_dir.join(rel);
             let ext = mesh_path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+            if let Some(mesh) = meshes(&mesh_path) {
+                return Ok(match scale {
+                    Some(s) => mesh.scaled(Vec3::from(s.0.map(|v| v as f32))),
+                    None => mesh,
+                });
+            }
             if ext != "obj" {
                 return Err(urdf_err(
                     file,
@@ -262,6 +282,7 @@ fn build_model(
     path: &Path,
     with_inertial: &HashSet<String>,
     joint_lines: &HashMap<String, u32>,
+    meshes: MeshSource,
 ) -> Result<ObjectModel> {
     let base_dir = path.parent().unwrap_or(Path::new("."));
     if robot.links.is_empty() {
@@ -280,7 +301,7 @@ fn build_model(
         }
         let mut visuals = Vec::new();
         for v in &l.visual {
-            let mesh = geometry_mesh(&v.geometry, base_dir, path, &l.name)?.transformed(&pose_of(&v.origin));
+            let mesh = geometry_mesh(&v.geometry, base_dir, path, &l.name, meshes)?.transformed(&pose_of(&v.origin));
             visuals.push(VisualModel { mesh_in_link: mesh, color: material_color(&v.material, &named_colors) });
         }
         let (mass, com, inertia, derived) = if with_inertial.contains(&l.name) {
@@ -302,7 +323,7 @@ fn build_model(
             // of a solid box filling the collision (else visual) bounds.
             let mut shape = TriMesh::default();
             for c in &l.collision {
-                shape.append(&geometry_mesh(&c.geometry, base_dir, path, &l.name)?.transformed(&pose_of(&c.origin)));
+                shape.append(&geometry_mesh(&c.geometry, base_dir, path, &l.name, meshes)?.transformed(&pose_of(&c.origin)));
             }
             if shape.positions.is_empty() {
                 for v in &visuals {

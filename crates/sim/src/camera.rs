@@ -1,0 +1,70 @@
+//! The pinhole camera of the protocol, OpenCV convention (x right, y down, z forward).
+use crate::math::{Mat3, Pose3, Quat, Vec3};
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Camera {
+    pub width: u32,
+    pub height: u32,
+    pub hfov_deg: f32,
+    pub eye: [f32; 3],
+    pub target: [f32; 3],
+    pub up: [f32; 3],
+    pub near: f32,
+    pub far: f32,
+}
+
+/// fx, fy, cx, cy in pixels (pixel centres at integer + 0.5).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Intrinsics {
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+}
+
+impl Camera {
+    /// The reference camera at a given resolution (height, width).
+    pub fn reference(height: u32, width: u32) -> Self {
+        Self {
+            width,
+            height,
+            hfov_deg: 69.4,
+            eye: [0.0, -2.0, 2.0],
+            target: [0.0, 0.0, 0.0],
+            up: [0.0, 0.0, 1.0],
+            near: 0.01,
+            far: 10.0,
+        }
+    }
+
+    pub fn intrinsics(&self) -> Intrinsics {
+        let fx = self.width as f32 / 2.0 / (self.hfov_deg.to_radians() / 2.0).tan();
+        Intrinsics { fx, fy: fx, cx: self.width as f32 / 2.0, cy: self.height as f32 / 2.0 }
+    }
+
+    /// Camera pose: maps points in the camera frame to the world frame.
+    pub fn world_from_camera(&self) -> Pose3 {
+        let eye = Vec3::from(self.eye);
+        let forward = (Vec3::from(self.target) - eye).normalize();
+        let right = forward.cross(Vec3::from(self.up)).normalize();
+        let down = forward.cross(right);
+        let rot = Mat3::from_cols(right, down, forward);
+        Pose3::from_parts(eye, Quat::from_mat3(&rot))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn target_projects_to_image_centre() {
+        let cam = Camera::reference(480, 640);
+        let p = cam.world_from_camera().inverse_transform_point(Vec3::ZERO);
+        let k = cam.intrinsics();
+        assert!((k.fx * p.x / p.z + k.cx - 320.0).abs() < 1e-3);
+        assert!((k.fy * p.y / p.z + k.cy - 240.0).abs() < 1e-3);
+        // World up appears as image up (negative y).
+        let q = cam.world_from_camera().inverse_transform_point(Vec3::new(0.0, 0.0, 0.5));
+        assert!(q.y / q.z < p.y / p.z);
+    }
+}

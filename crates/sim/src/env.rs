@@ -1,0 +1,284 @@
+//! The task environment: a scene in the simulator, seen by the camera.
+//! Position action = a pixel; direction actions = unit vectors; each
+//! direction returns the labels the paper trains on.
+use crate::camera::Camera;
+use crate::error::{Result, SimError};
+use crate::math::{Mat4, Pose3, Quat, Vec3};
+use crate::physics::{Articulation, PhysicsConfig};
+use crate::render::{gripper_mesh, plane_mesh, Frame, RenderMesh, Renderer, Segment};
+use crate::scene::{Scene, Task};
+use crate::urdf::ObjectModel;
+use std::sync::Arc;
+
+/// δ: the smallest joint change that counts as a state change — 0.15 m for
+/// prismatic joints, 8.6° = 0.15 rad for revolute ones.
+pub const DELTA: f32 = 0.15;
+
+/// The object id used in segment ids.
+pub const OBJECT_ID: u32 = 1;
+
+/// Where a pixel lands.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Pick {
+    /// On a link that a movable joint moves.
+    Movable { point_in_world: Vec3, normal_in_world: Vec3, link: usize, joint: usize },
+    /// Background, floor, gripper or a fixed link: nothing to grasp.
+    NoMovableLink,
+}
+
+/// Labels of one executed direction (definitions in DESIGN.md).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StepLabels {
+    pub joint_before: f32,
+    pub joint_after: f32,
+    /// |j_t - j_{t-1}|
+    pub r_dist: f32,
+    /// Arrow of Time: 0 (no effective change), +1 (away from the start), -1 (back).
+    pub aot: i8,
+    pub moved: bool,
+    pub reached_limit: bool,
+    pub back_at_start: bool,
+    pub suction_lost: bool,
+}
+
+#[derive(Clone, Debug)]
+struct Grasp {
+    link: usize,
+    joint: usize,
+    normal_in_link: Vec3,
+    j0: f32,
+}
+
+pub struct SimEnv {
+    scene: Scene,
+    model: Arc<ObjectModel>,
+    art: Articulation,
+    camera: Camera,
+    renderer: Box<dyn Renderer>,
+    grasp: Option<Grasp>,
+}
+
+impl SimEnv {
+    pub fn new(scene: Scene, camera: Camera, mut renderer: Box<dyn Renderer>) -> Result<Self> {
+        let model = Arc::new(scene.object.load()?);
+        scene.validate(&model)?;
+        let mut art = Articulation::new(model.clone(), scene.world_from_base(), PhysicsConfig::default());
+        art.set_joint_positions(&scene.joints)?;
+        renderer.load(&render_meshes(&model))?;
+        Ok(Self { scene, model, art, camera, renderer, grasp: None })
+    }
+
+    /// Same object, another scene: no reloading of meshes.
+    pub fn reset(&mut self, scene: Scene) -> Result<()> {
+        if scene.object != self.scene.object {
+            *self = Self::new(scene, self.camera.clone(), std::mem::replace(&mut self.renderer, Box::new(crate::render::CpuRenderer::default())))?;
+            return Ok(());
+        }
+        scene.validate(&self.model)?;
+        self.art = Articulation::new(self.model.clone(), scene.world_from_base(), PhysicsConfig::default());
+        self.art.set_joint_positions(&scene.joints)?;
+        self.scene = scene;
+        self.grasp = None;
+        Ok(())
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+    pub fn model(&self) -> &Arc<ObjectModel> {
+        &self.model
+    }
+    pub fn articulation(&self) -> &Articulation {
+        &self.art
+    }
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+    pub fn renderer_name(&self) -> String {
+        self.renderer.name()
+    }
+    pub fn grasped_joint(&self) -> Option<usize> {
+        self.grasp.as_ref().map(|g| g.joint)
+    }
+    pub fn grasped_link(&self) -> Option<usize> {
+        self.grasp.as_ref().map(|g| g.link)
+    }
+    /// Joint value at the moment of the grasp (j_0).
+    pub fn grasp_start_value(&self) -> Option<f32> {
+        self.grasp.as_ref().map(|g| g.j0)
+    }
+    pub fn joint_positions(&self) -> Vec<f32> {
+        self.art.joint_positions()
+    }
+
+    fn part_transforms(&self) -> Vec<Mat4> {
+        let n = self.model.links.len();
+        let mut t: Vec<Mat4> = (0..n).map(|l| self.art.world_from_link(l).to_mat4()).collect();
+        t.push(Mat4::IDENTITY); // floor plane
+        let gripper = match (&self.grasp, self.art.gripper_position()) {
+            (Some(g), Some(p)) => {
+                let n = self.art.world_from_link(g.link).rotation * g.normal_in_link;
+                Pose3::from_parts(p, Quat::from_rotation_arc(Vec3::Z, n)).to_mat4()
+            }
+            _ => Mat4::ZERO, // hidden
+        };
+        t.push(gripper);
+        t
+    }
+
+    /// Renders the current state (with the gripper when it holds something).
+    pub fn render(&mut self) -> Result<Frame> {
+        let t = self.part_transforms();
+        self.renderer.render(&self.camera, &t)
+    }
+
+    /// Renders the object in another joint state (e.g. the goal) without
+    /// changing the simulation.
+    pub fn render_joint_state(&mut self, joints: &[f32]) -> Result<Frame> {
+        let mut shadow = Articulation::new(self.model.clone(), self.scene.world_from_base(), PhysicsConfig::default());
+        shadow.set_joint_positions(joints)?;
+        let mut t: Vec<Mat4> = (0..self.model.links.len()).map(|l| shadow.world_from_link(l).to_mat4()).collect();
+        t.push(Mat4::IDENTITY);
+        t.push(Mat4::ZERO);
+        self.renderer.render(&self.camera, &t)
+    }
+
+    /// The goal image of a goal scene.
+    pub fn render_goal(&mut self) -> Result<Option<Frame>> {
+        match self.scene.goal.clone() {
+            Some(g) => self.render_joint_state(&g.joints).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// The movable joint that moves `link` (its own, or its nearest movable ancestor's).
+    pub fn joint_moving_link(&self, link: usize) -> Option<usize> {
+        let mut l = link;
+        while let Some(j) = self.model.parent_joint_of(l) {
+            if self.model.joints[j].kind.is_movable() {
+                return Some(j);
+            }
+            l = self.model.joints[j].parent;
+        }
+        None
+    }
+
+    /// What is under a pixel of `frame`.
+    pub fn pick(&self, frame: &Frame, row: u32, col: u32) -> Result<Pick> {
+        if row >= frame.height || col >= frame.width {
+            return Err(SimError::InvalidAction(format!(
+                "pixel (row {row}, col {col}) outside the {}x{} image",
+                frame.height, frame.width
+            )));
+        }
+        let i = frame.index(row, col);
+        let Segment::Link { object: OBJECT_ID, link } = Segment::decode(frame.segmentation[i]) else {
+            return Ok(Pick::NoMovableLink);
+        };
+        let (Some(joint), Some(point)) = (self.joint_moving_link(link), frame.point_in_world(row, col)) else {
+            return Ok(Pick::NoMovableLink);
+        };
+        Ok(Pick::Movable { point_in_world: point, normal_in_world: Vec3::from(frame.normal_in_world[i]), link, joint })
+    }
+
+    /// Position action: grasp what is under the pixel. Returns the pick; the
+    /// episode should end when it is `NoMovableLink` (or, in the goal task,
+    /// not on the goal joint).
+    pub fn step_position(&mut self, frame: &Frame, row: u32, col: u32) -> Result<Pick> {
+        if self.grasp.is_some() {
+            return Err(SimError::InvalidAction("the position action was already taken in this episode".into()));
+        }
+        let pick = self.pick(frame, row, col)?;
+        if let Pick::Movable { point_in_world, normal_in_world, link, joint } = &pick {
+            self.art.attach(*point_in_world, *link)?;
+            let normal_in_link = self.art.world_from_link(*link).rotation.inverse() * *normal_in_world;
+            self.grasp = Some(Grasp { link: *link, joint: *joint, normal_in_link, j0: self.art.joint_position(*joint) });
+        }
+        Ok(pick)
+    }
+
+    /// True when the pick is acceptable for this scene's task.
+    pub fn pick_is_valid(&self, pick: &Pick) -> bool {
+        match (pick, self.scene.task, &self.scene.goal) {
+            (Pick::NoMovableLink, _, _) => false,
+            (Pick::Movable { joint, .. }, Task::Goal, Some(g)) => *joint == g.joint,
+            _ => true,
+        }
+    }
+
+    /// Direction action: move the gripper 0.18 m along `direction` (world frame).
+    /// Non-unit vectors are normalised; zero, NaN or infinite ones are an error
+    /// and leave the state untouched.
+    pub fn step_direction(&mut self, direction: Vec3) -> Result<StepLabels> {
+        let Some(g) = self.grasp.clone() else {
+            return Err(SimError::InvalidAction("step_direction before a position action".into()));
+        };
+        if !direction.is_finite() || direction.length() < 1e-6 {
+            return Err(SimError::InvalidAction(format!("direction {direction} must be finite and non-zero")));
+        }
+        let out = self.art.move_gripper(direction.normalize(), g.joint)?;
+        let jm = &self.model.joints[g.joint];
+        Ok(labels(out.joint_before, out.joint_after, g.j0, jm.lower, jm.upper, out.suction_lost))
+    }
+}
+
+/// The paper's labels for one action (pure function, tested on its own).
+pub fn labels(before: f32, after: f32, j0: f32, lower: f32, upper: f32, suction_lost: bool) -> StepLabels {
+    let r_dist = (after - before).abs();
+    // A move from (numerically) the start is forward by definition.
+    let from_start = if (before - j0).abs() < 1e-3 { 0.0 } else { before - j0 };
+    let gamma = (after - before) * from_start;
+    let aot = if r_dist <= DELTA { 0 } else if gamma >= 0.0 { 1 } else { -1 };
+    let tol = 1e-3 + 1e-3 * (upper - lower).abs().min(10.0);
+    StepLabels {
+        joint_before: before,
+        joint_after: after,
+        r_dist,
+        aot,
+        moved: r_dist > DELTA / 10.0,
+        reached_limit: (after - lower).abs() < tol || (after - upper).abs() < tol,
+        back_at_start: (after - j0).abs() <= DELTA,
+        suction_lost,
+    }
+}
+
+/// The object's visuals plus floor and gripper, in part slots: links, then plane, then gripper.
+pub fn render_meshes(model: &ObjectModel) -> Vec<RenderMesh> {
+    let n = model.links.len();
+    let mut meshes: Vec<RenderMesh> = model
+        .links
+        .iter()
+        .enumerate()
+        .flat_map(|(l, link)| {
+            link.visuals.iter().map(move |v| RenderMesh {
+                part: l,
+                segment: Segment::link_id(OBJECT_ID, l),
+                color: v.color,
+                mesh: v.mesh_in_link.clone(),
+            })
+        })
+        .collect();
+    meshes.push(plane_mesh(n));
+    meshes.push(gripper_mesh(n + 1));
+    meshes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn aot_labels_follow_the_definition() {
+        // Forward from the start, forward again, back, no change.
+        assert_eq!(labels(0.0, 0.3, 0.0, 0.0, 1.5, false).aot, 1);
+        assert_eq!(labels(0.3, 0.6, 0.0, 0.0, 1.5, false).aot, 1);
+        assert_eq!(labels(0.6, 0.3, 0.0, 0.0, 1.5, false).aot, -1);
+        assert_eq!(labels(0.6, 0.7, 0.0, 0.0, 1.5, false).aot, 0);
+        // Starting mid-range and going down first is also "forward".
+        assert_eq!(labels(0.8, 0.5, 0.8, 0.0, 1.5, false).aot, 1);
+        assert_eq!(labels(0.5, 0.8, 0.8, 0.0, 1.5, false).aot, -1);
+        let l = labels(1.2, 1.5, 0.0, 0.0, 1.5, false);
+        assert!(l.reached_limit && !l.back_at_start);
+        assert!(labels(0.3, 0.1, 0.0, 0.0, 1.5, false).back_at_start);
+    }
+}

@@ -1,0 +1,121 @@
+//! A small part builder: links made of boxes, joints between them, written out
+//! as URDF + one OBJ per link in the PartNet-Mobility layout.
+use crate::math::{Pose3, Vec3};
+use crate::mesh::TriMesh;
+use crate::urdf::JointKind;
+use std::fmt::Write as _;
+
+pub(crate) struct PartLink {
+    pub name: String,
+    pub mesh: TriMesh,
+    pub color: [f32; 3],
+}
+
+pub(crate) struct PartJoint {
+    pub kind: JointKind,
+    pub parent: usize,
+    pub child: usize,
+    /// Joint origin in the parent link frame (no rotation: axes are given in parent axes).
+    pub origin: Vec3,
+    pub axis: Vec3,
+    pub lower: f32,
+    pub upper: f32,
+}
+
+/// Builds an object whose link frames all share the object's axes; a child
+/// link's frame sits at its joint origin.
+#[derive(Default)]
+pub(crate) struct Parts {
+    pub links: Vec<PartLink>,
+    pub joints: Vec<PartJoint>,
+    /// Each link's frame origin in the object frame.
+    origins: Vec<Vec3>,
+}
+
+/// Density used for generated inertials (kg/m^3): light furniture.
+const DENSITY: f32 = 200.0;
+
+impl Parts {
+    /// The fixed base; `boxes` are (centre, size) in the object frame.
+    pub fn base(&mut self, boxes: &[(Vec3, Vec3)], color: [f32; 3]) -> usize {
+        self.add_link("base", Vec3::ZERO, boxes, color)
+    }
+
+    fn add_link(&mut self, name: &str, origin: Vec3, boxes: &[(Vec3, Vec3)], color: [f32; 3]) -> usize {
+        let mut mesh = TriMesh::default();
+        for (centre, size) in boxes {
+            mesh.append(&TriMesh::cuboid(*size).transformed(&Pose3::from_translation(*centre - origin)));
+        }
+        self.links.push(PartLink { name: name.to_owned(), mesh, color });
+        self.origins.push(origin);
+        self.links.len() - 1
+    }
+
+    /// A moving part: boxes given in the object frame (joint value 0), hinged or
+    /// sliding at `joint_origin` (object frame) about/along `axis`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn part(
+        &mut self,
+        parent: usize,
+        kind: JointKind,
+        joint_origin: Vec3,
+        axis: Vec3,
+        limits: (f32, f32),
+        boxes: &[(Vec3, Vec3)],
+        color: [f32; 3],
+    ) -> usize {
+        let name = format!("link_{}", self.links.len() - 1);
+        let child = self.add_link(&name, joint_origin, boxes, color);
+        self.joints.push(PartJoint {
+            kind,
+            parent,
+            child,
+            origin: joint_origin - self.origins[parent],
+            axis: axis.normalize(),
+            lower: limits.0,
+            upper: limits.1,
+        });
+        child
+    }
+
+    pub fn mesh_file(link: usize) -> String {
+        format!("textured_objs/original-{link}.obj")
+    }
+
+    pub fn urdf(&self, name: &str) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "<?xml version=\"1.0\"?>\n<robot name=\"{name}\">");
+        for (i, l) in self.links.iter().enumerate() {
+            let (lo, hi) = l.mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+            let size = (hi - lo).max(Vec3::splat(0.005));
+            let com = (lo + hi) * 0.5;
+            let mass = (DENSITY * size.x * size.y * size.z).max(0.05);
+            let ix = mass / 12.0 * (size.y * size.y + size.z * size.z);
+            let iy = mass / 12.0 * (size.x * size.x + size.z * size.z);
+            let iz = mass / 12.0 * (size.x * size.x + size.y * size.y);
+            let [r, g, b] = l.color;
+            let file = Self::mesh_file(i);
+            let _ = writeln!(
+                s,
+                "  <link name=\"{}\">\n    <inertial>\n      <origin xyz=\"{:.5} {:.5} {:.5}\" rpy=\"0 0 0\"/>\n      <mass value=\"{mass:.5}\"/>\n      <inertia ixx=\"{ix:.6}\" ixy=\"0\" ixz=\"0\" iyy=\"{iy:.6}\" iyz=\"0\" izz=\"{iz:.6}\"/>\n    </inertial>\n    <visual>\n      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <geometry><mesh filename=\"{file}\"/></geometry>\n      <material name=\"{}_color\"><color rgba=\"{r:.3} {g:.3} {b:.3} 1\"/></material>\n    </visual>\n    <collision>\n      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <geometry><mesh filename=\"{file}\"/></geometry>\n    </collision>\n  </link>",
+                l.name, com.x, com.y, com.z, l.name
+            );
+        }
+        for (k, j) in self.joints.iter().enumerate() {
+            let kind = match j.kind {
+                JointKind::Fixed => "fixed",
+                JointKind::Revolute => "revolute",
+                JointKind::Continuous => "continuous",
+                JointKind::Prismatic => "prismatic",
+            };
+            let _ = writeln!(
+                s,
+                "  <joint name=\"joint_{k}\" type=\"{kind}\">\n    <origin xyz=\"{:.5} {:.5} {:.5}\" rpy=\"0 0 0\"/>\n    <axis xyz=\"{:.5} {:.5} {:.5}\"/>\n    <parent link=\"{}\"/>\n    <child link=\"{}\"/>\n    <limit lower=\"{:.5}\" upper=\"{:.5}\" effort=\"100\" velocity=\"1\"/>\n    <dynamics damping=\"2\" friction=\"0.5\"/>\n  </joint>",
+                j.origin.x, j.origin.y, j.origin.z, j.axis.x, j.axis.y, j.axis.z,
+                self.links[j.parent].name, self.links[j.child].name, j.lower, j.upper
+            );
+        }
+        s.push_str("</robot>\n");
+        s
+    }
+}

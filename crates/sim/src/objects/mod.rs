@@ -1,0 +1,180 @@
+//! Procedural articulated objects for the paper's 22 categories, written as
+//! URDF + OBJ in the PartNet-Mobility layout (`<Category>/<id>/mobility.urdf`).
+mod builder;
+mod families;
+
+use crate::error::{Result, SimError};
+use crate::mesh::TriMesh;
+use crate::urdf::{parse_urdf_with, ObjectModel};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+macro_rules! categories {
+    ($($name:ident = $steps:expr, $train:expr;)*) => {
+        /// The paper's object categories (12 for training, 10 held out).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+        pub enum Category { $($name),* }
+        impl Category {
+            pub const ALL: &'static [Category] = &[$(Category::$name),*];
+            pub fn name(self) -> &'static str {
+                match self { $(Category::$name => stringify!($name)),* }
+            }
+            /// Step budget of the exploration benchmark (paper, appendix table).
+            pub fn step_budget(self) -> usize {
+                match self { $(Category::$name => $steps),* }
+            }
+            /// True for the 12 training categories.
+            pub fn is_train(self) -> bool {
+                match self { $(Category::$name => $train),* }
+            }
+        }
+    };
+}
+
+categories! {
+    Refrigerator = 12, true; FoldingChair = 8, true; Laptop = 12, true; Stapler = 15, true;
+    TrashCan = 9, true; Microwave = 8, true; Toilet = 7, true; Window = 6, true;
+    StorageFurniture = 9, true; Switch = 7, true; Kettle = 3, true; Toy = 10, true;
+    Box = 10, false; Phone = 12, false; Dishwasher = 10, false; Safe = 10, false;
+    Oven = 9, false; WashingMachine = 9, false; Table = 7, false; KitchenPot = 3, false;
+    Bucket = 13, false; Door = 10, false;
+}
+
+impl std::fmt::Display for Category {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Category {
+    type Err = SimError;
+    fn from_str(s: &str) -> Result<Self> {
+        let key = s.to_ascii_lowercase().replace(['_', '-'], "");
+        let alias = match key.as_str() {
+            "fridge" => "refrigerator",
+            "cabinet" => "storagefurniture",
+            other => other,
+        };
+        Category::ALL.iter().copied().find(|c| c.name().to_ascii_lowercase() == alias).ok_or_else(|| {
+            let names: Vec<&str> = Category::ALL.iter().map(|c| c.name()).collect();
+            SimError::Other(format!("unknown category `{s}`; expected one of {}", names.join(", ")))
+        })
+    }
+}
+
+/// Instance split: training categories have train and test instances; test
+/// categories only test instances.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum InstanceSplit {
+    Train,
+    Test,
+}
+
+/// Which instances of a category belong to a split: every fifth instance of a
+/// training category is held out for testing.
+pub fn instance_split(category: Category, index: u32) -> InstanceSplit {
+    if category.is_train() && index % 5 != 4 { InstanceSplit::Train } else { InstanceSplit::Test }
+}
+
+/// The `k`-th instance index of a category within a split.
+pub fn nth_instance(category: Category, split: InstanceSplit, k: u32) -> u32 {
+    match (category.is_train(), split) {
+        (false, _) => k,
+        (true, InstanceSplit::Test) => 5 * k + 4,
+        (true, InstanceSplit::Train) => k / 4 * 5 + k % 4,
+    }
+}
+
+/// A generated object: URDF text plus its meshes, not yet on disk.
+pub struct GeneratedObject {
+    pub category: Category,
+    pub index: u32,
+    pub urdf: String,
+    pub meshes: Vec<(String, TriMesh)>,
+}
+
+fn instance_seed(dataset_seed: u64, category: Category, index: u32) -> u64 {
+    let c = Category::ALL.iter().position(|x| *x == category).unwrap_or(0) as u64;
+    dataset_seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (c << 40) ^ index as u64
+}
+
+/// Generates instance `index` of `category`; a pure function of its arguments.
+pub fn generate(category: Category, index: u32, dataset_seed: u64) -> GeneratedObject {
+    let mut rng = ChaCha8Rng::seed_from_u64(instance_seed(dataset_seed, category, index));
+    let test = instance_split(category, index) == InstanceSplit::Test;
+    let parts = families::build(category, &mut rng, test);
+    let meshes = parts
+        .links
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (builder::Parts::mesh_file(i), l.mesh.clone()))
+        .collect();
+    GeneratedObject {
+        category,
+        index,
+        urdf: parts.urdf(&format!("{}_{index}", category.name())),
+        meshes,
+    }
+}
+
+impl GeneratedObject {
+    /// The instance id used as its folder name.
+    pub fn id(&self) -> String {
+        format!("{}", self.index)
+    }
+
+    /// Where this object lives under a dataset root.
+    pub fn urdf_path(&self, root: &Path) -> PathBuf {
+        root.join(self.category.name()).join(self.id()).join("mobility.urdf")
+    }
+
+    /// Loads the object without touching the disk.
+    pub fn model(&self) -> Result<ObjectModel> {
+        let dir = PathBuf::from(format!("generated/{}/{}", self.category.name(), self.index));
+        let meshes: HashMap<PathBuf, &TriMesh> = self.meshes.iter().map(|(rel, m)| (dir.join(rel), m)).collect();
+        parse_urdf_with(&self.urdf, &dir.join("mobility.urdf"), &|p| meshes.get(p).map(|m| (*m).clone()))
+    }
+
+    /// Writes `mobility.urdf` and `textured_objs/*.obj` under `root`.
+    pub fn write(&self, root: &Path) -> Result<PathBuf> {
+        let urdf = self.urdf_path(root);
+        let dir = urdf.parent().unwrap_or(root).to_path_buf();
+        let io = |file: &Path, e: std::io::Error| SimError::Io { file: file.to_path_buf(), source: e };
+        std::fs::create_dir_all(dir.join("textured_objs")).map_err(|e| io(&dir, e))?;
+        for (rel, mesh) in &self.meshes {
+            let p = dir.join(rel);
+            std::fs::write(&p, mesh.to_obj()).map_err(|e| io(&p, e))?;
+        }
+        std::fs::write(&urdf, &self.urdf).map_err(|e| io(&urdf, e))?;
+        Ok(urdf)
+    }
+}
+
+/// Writes `per_category` instances of each category and `split.json` under `root`.
+pub fn write_dataset(root: &Path, categories: &[Category], per_category: u32, dataset_seed: u64) -> Result<serde_json::Value> {
+    let mut split = serde_json::Map::new();
+    for &c in categories {
+        let mut train = Vec::new();
+        let mut test = Vec::new();
+        for i in 0..per_category {
+            let obj = generate(c, i, dataset_seed);
+            obj.write(root)?;
+            match instance_split(c, i) {
+                InstanceSplit::Train => train.push(obj.id()),
+                InstanceSplit::Test => test.push(obj.id()),
+            }
+        }
+        split.insert(
+            c.name().to_owned(),
+            serde_json::json!({"role": if c.is_train() { "train" } else { "test" }, "train": train, "test": test}),
+        );
+    }
+    let value = serde_json::json!({"dataset_seed": dataset_seed, "categories": split});
+    let path = root.join("split.json");
+    let text = serde_json::to_string_pretty(&value).map_err(|e| SimError::Other(e.to_string()))?;
+    std::fs::write(&path, text).map_err(|e| SimError::Io { file: path, source: e })?;
+    Ok(value)
+}

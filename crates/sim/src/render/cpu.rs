@@ -1,0 +1,101 @@
+//! Pure-CPU renderer: one ray per pixel centre against a BVH (parry3d) of the
+//! scene's triangles in world frame. Independent of the rasteriser, so tests
+//! use it as a reference; also the fallback when no GPU adapter exists.
+use super::{shade, Frame, RenderMesh, Renderer, SEG_BACKGROUND};
+use crate::camera::Camera;
+use crate::error::{Result, SimError};
+use crate::math::{Mat4, Vec3};
+use rapier3d::parry::query::{Ray, RayCast};
+use rapier3d::parry::shape::TriMesh as ParryMesh;
+
+#[derive(Default)]
+pub struct CpuRenderer {
+    meshes: Vec<RenderMesh>,
+}
+
+impl Renderer for CpuRenderer {
+    fn name(&self) -> String {
+        "cpu/parry3d ray casting".into()
+    }
+
+    fn load(&mut self, meshes: &[RenderMesh]) -> Result<()> {
+        self.meshes = meshes.to_vec();
+        Ok(())
+    }
+
+    fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame> {
+        let (w, h) = (camera.width, camera.height);
+        if w == 0 || h == 0 || w > 4096 || h > 4096 {
+            return Err(SimError::Render(format!("resolution {h}x{w} out of range 1..=4096")));
+        }
+        // Triangles in world frame, each remembering its mesh.
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        let mut owner = Vec::new();
+        for (mi, m) in self.meshes.iter().enumerate() {
+            let t = part_transforms.get(m.part).copied().unwrap_or(Mat4::IDENTITY);
+            if t.determinant().abs() < 1e-9 {
+                continue; // hidden part
+            }
+            let base = positions.len() as u32;
+            positions.extend(m.mesh.positions.iter().map(|p| t.transform_point3(*p)));
+            for tri in &m.mesh.triangles {
+                let [a, b, c] = tri.map(|i| positions[(base + i) as usize]);
+                if (b - a).cross(c - a).length_squared() > 1e-14 {
+                    triangles.push([base + tri[0], base + tri[1], base + tri[2]]);
+                    owner.push(mi);
+                }
+            }
+        }
+        let k = camera.intrinsics();
+        let world_from_camera = camera.world_from_camera();
+        let eye = Vec3::from(camera.eye);
+        let npix = (w * h) as usize;
+        let mut frame = Frame {
+            width: w,
+            height: h,
+            rgb: vec![0; npix * 3],
+            depth: vec![0.0; npix],
+            segmentation: vec![SEG_BACKGROUND; npix],
+            normal_in_world: vec![[0.0; 3]; npix],
+            intrinsics: k,
+            world_from_camera,
+        };
+        if triangles.is_empty() {
+            return Ok(frame);
+        }
+        let ntri = triangles.len() as u32;
+        let bvh = ParryMesh::new(positions, triangles)
+            .map_err(|e| SimError::Render(format!("building the ray-casting BVH: {e:?}")))?;
+        let forward = world_from_camera.rotation * Vec3::Z;
+        for row in 0..h {
+            for col in 0..w {
+                let dir_cam = Vec3::new((col as f32 + 0.5 - k.cx) / k.fx, (row as f32 + 0.5 - k.cy) / k.fy, 1.0);
+                let dir = world_from_camera.rotation * dir_cam;
+                let ray = Ray::new(eye, dir);
+                let Some(hit) = bvh.cast_local_ray_and_get_normal(&ray, camera.far, true) else { continue };
+                let tri = hit.subshape as u32;
+                if tri >= ntri {
+                    continue;
+                }
+                let point = eye + dir * hit.time_of_impact;
+                let z = (point - eye).dot(forward);
+                if z < camera.near {
+                    continue;
+                }
+                let t = bvh.triangle(tri);
+                let mut n = (t.b - t.a).cross(t.c - t.a).normalize();
+                if n.dot(eye - point) < 0.0 {
+                    n = -n;
+                }
+                let m = &self.meshes[owner[tri as usize]];
+                let i = (row * w + col) as usize;
+                frame.depth[i] = z;
+                frame.segmentation[i] = m.segment;
+                frame.normal_in_world[i] = n.to_array();
+                frame.rgb[i * 3..i * 3 + 3].copy_from_slice(&shade(m.color, n));
+            }
+        }
+        Ok(frame)
+    }
+}

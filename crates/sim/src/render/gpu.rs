@@ -1,0 +1,394 @@
+//! The wgpu rasteriser. One device per process (creating one costs far more
+//! than a frame), used by one thread at a time: parallel lavapipe devices were
+//! seen to corrupt memory under load.
+use super::{Frame, RenderMesh, Renderer};
+use crate::camera::Camera;
+use crate::error::{Result, SimError};
+use crate::math::{Mat4, Vec3};
+use std::sync::{Arc, Mutex, OnceLock};
+use wgpu::util::DeviceExt;
+
+const MAX_PARTS: usize = 64;
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const DATA_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+struct Gpu {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    adapter_name: String,
+    /// Serialises all use of the device.
+    lock: Mutex<()>,
+}
+
+static GPU: OnceLock<std::result::Result<Arc<Gpu>, String>> = OnceLock::new();
+
+fn gpu() -> Result<Arc<Gpu>> {
+    GPU.get_or_init(|| init().map(Arc::new)).clone().map_err(SimError::Render)
+}
+
+/// True when a wgpu adapter can be created here.
+pub fn gpu_available() -> bool {
+    gpu().is_ok()
+}
+
+fn init() -> std::result::Result<Gpu, String> {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        // Silences a harmless warning of the Vulkan loader on headless machines.
+        // SAFETY: set once, at first use, before any renderer thread reads the environment.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
+    }
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL;
+    let instance = wgpu::Instance::new(desc);
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        force_fallback_adapter: false,
+        compatible_surface: None,
+        ..Default::default()
+    }))
+    .map_err(|e| format!("no adapter: {e}"))?;
+    let info = adapter.get_info();
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("umpnet"),
+        required_features: wgpu::Features::empty(),
+        required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+        ..Default::default()
+    }))
+    .map_err(|e| format!("no device: {e}"))?;
+    let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("umpnet shader"),
+        source: wgpu::ShaderSource::Wgsl(include_str!("shader.wgsl").into()),
+    });
+    let uniform = |binding| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: None,
+        entries: &[uniform(0), uniform(1)],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: None,
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("umpnet pipeline"),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: &shader,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<Vertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Uint32, 3 => Uint32],
+            })],
+        },
+        fragment: Some(wgpu::FragmentState {
+            module: &shader,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets: &[Some(COLOR_FORMAT.into()), Some(DATA_FORMAT.into())],
+        }),
+        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        multiview_mask: None,
+        cache: None,
+    });
+    Ok(Gpu {
+        adapter_name: format!("{:?} {}", info.backend, info.name),
+        device,
+        queue,
+        pipeline,
+        layout,
+        lock: Mutex::new(()),
+    })
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    part: u32,
+    color: u32,
+    segment: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct CameraUniform {
+    clip_from_camera: [[f32; 4]; 4],
+    camera_from_world: [[f32; 4]; 4],
+    eye: [f32; 4],
+    light: [f32; 4],
+}
+
+struct Targets {
+    size: (u32, u32),
+    color: wgpu::Texture,
+    data: wgpu::Texture,
+    depth: wgpu::Texture,
+    color_buf: wgpu::Buffer,
+    data_buf: wgpu::Buffer,
+}
+
+pub struct GpuRenderer {
+    gpu: Arc<Gpu>,
+    vertices: Option<(wgpu::Buffer, u32)>,
+    camera_buf: wgpu::Buffer,
+    parts_buf: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    targets: Option<Targets>,
+}
+
+fn padded(bytes_per_row: u32) -> u32 {
+    bytes_per_row.div_ceil(256) * 256
+}
+
+impl GpuRenderer {
+    pub fn new() -> Result<Self> {
+        let gpu = gpu()?;
+        let device = &gpu.device;
+        let camera_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("camera"),
+            size: std::mem::size_of::<CameraUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let parts_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("parts"),
+            size: (MAX_PARTS * 64) as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &gpu.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: camera_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: parts_buf.as_entire_binding() },
+            ],
+        });
+        Ok(Self { gpu, vertices: None, camera_buf, parts_buf, bind_group, targets: None })
+    }
+
+    fn targets(&mut self, width: u32, height: u32) -> &Targets {
+        if self.targets.as_ref().map(|t| t.size) != Some((width, height)) {
+            let device = &self.gpu.device;
+            let tex = |format, usage| {
+                device.create_texture(&wgpu::TextureDescriptor {
+                    label: None,
+                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage,
+                    view_formats: &[],
+                })
+            };
+            let rt = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+            let buf = |bpp: u32| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: None,
+                    size: (padded(width * bpp) * height) as u64,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            };
+            self.targets = Some(Targets {
+                size: (width, height),
+                color: tex(COLOR_FORMAT, rt),
+                data: tex(DATA_FORMAT, rt),
+                depth: tex(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT),
+                color_buf: buf(4),
+                data_buf: buf(16),
+            });
+        }
+        self.targets.as_ref().expect("targets were just created")
+    }
+}
+
+fn pack_color(c: [f32; 3]) -> u32 {
+    let [r, g, b] = c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u32);
+    r | (g << 8) | (b << 16) | (255 << 24)
+}
+
+fn unpack_snorm(v: u32) -> (f32, f32) {
+    let lo = (v & 0xFFFF) as u16 as i16;
+    let hi = (v >> 16) as u16 as i16;
+    ((lo as f32 / 32767.0).max(-1.0), (hi as f32 / 32767.0).max(-1.0))
+}
+
+impl Renderer for GpuRenderer {
+    fn name(&self) -> String {
+        format!("wgpu/{}", self.gpu.adapter_name)
+    }
+
+    fn load(&mut self, meshes: &[RenderMesh]) -> Result<()> {
+        let mut verts = Vec::new();
+        for m in meshes {
+            if m.part >= MAX_PARTS {
+                return Err(SimError::Render(format!("part slot {} exceeds the {MAX_PARTS} supported", m.part)));
+            }
+            let color = pack_color(m.color);
+            for t in &m.mesh.triangles {
+                for &i in t {
+                    let p = m.mesh.positions[i as usize];
+                    verts.push(Vertex { position: p.to_array(), part: m.part as u32, color, segment: m.segment });
+                }
+            }
+        }
+        let _guard = self.gpu.lock.lock().map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
+        let buf = self.gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vertices"),
+            contents: bytemuck::cast_slice(&verts),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        self.vertices = Some((buf, verts.len() as u32));
+        Ok(())
+    }
+
+    fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame> {
+        let (w, h) = (camera.width, camera.height);
+        if w == 0 || h == 0 || w > 4096 || h > 4096 {
+            return Err(SimError::Render(format!("resolution {h}x{w} out of range 1..=4096")));
+        }
+        let k = camera.intrinsics();
+        let world_from_camera = camera.world_from_camera();
+        let (n, f) = (camera.near, camera.far);
+        // OpenCV pinhole to wgpu clip space (y up, depth 0..1).
+        let clip_from_camera = Mat4::from_cols_array_2d(&[
+            [2.0 * k.fx / w as f32, 0.0, 0.0, 0.0],
+            [0.0, -2.0 * k.fy / h as f32, 0.0, 0.0],
+            [(2.0 * k.cx - w as f32) / w as f32, 1.0 - 2.0 * k.cy / h as f32, f / (f - n), 1.0],
+            [0.0, 0.0, -f * n / (f - n), 0.0],
+        ]);
+        let light = Vec3::new(0.3, -0.6, 0.75).normalize();
+        let uniform = CameraUniform {
+            clip_from_camera: clip_from_camera.to_cols_array_2d(),
+            camera_from_world: world_from_camera.inverse().to_mat4().to_cols_array_2d(),
+            eye: [camera.eye[0], camera.eye[1], camera.eye[2], 1.0],
+            light: [light.x, light.y, light.z, 0.0],
+        };
+        let mut parts = [[[0f32; 4]; 4]; MAX_PARTS];
+        for (slot, t) in parts.iter_mut().zip(part_transforms) {
+            *slot = t.to_cols_array_2d();
+        }
+        let gpu = self.gpu.clone();
+        let _guard = gpu.lock.lock().map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
+        gpu.queue.write_buffer(&self.camera_buf, 0, bytemuck::bytes_of(&uniform));
+        gpu.queue.write_buffer(&self.parts_buf, 0, bytemuck::cast_slice(&parts));
+        let bind_group = self.bind_group.clone();
+        let vertices = self.vertices.as_ref().map(|(b, c)| (b.clone(), *c));
+        let t = self.targets(w, h);
+        let color_view = t.color.create_view(&Default::default());
+        let data_view = t.data.create_view(&Default::default());
+        let depth_view = t.depth.create_view(&Default::default());
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        {
+            let attach = |view| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                })
+            };
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: None,
+                color_attachments: &[attach(&color_view), attach(&data_view)],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth_view,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if let Some((buf, count)) = &vertices {
+                pass.set_pipeline(&gpu.pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.set_vertex_buffer(0, buf.slice(..));
+                pass.draw(0..*count, 0..1);
+            }
+        }
+        let copy = |enc: &mut wgpu::CommandEncoder, tex: &wgpu::Texture, buf: &wgpu::Buffer, bpp: u32| {
+            enc.copy_texture_to_buffer(
+                tex.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: buf,
+                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded(w * bpp)), rows_per_image: Some(h) },
+                },
+                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+            );
+        };
+        copy(&mut enc, &t.color, &t.color_buf, 4);
+        copy(&mut enc, &t.data, &t.data_buf, 16);
+        gpu.queue.submit([enc.finish()]);
+        t.color_buf.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        t.data_buf.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| SimError::Render(format!("waiting for the frame: {e}")))?;
+        let npix = (w * h) as usize;
+        let mut frame = Frame {
+            width: w,
+            height: h,
+            rgb: vec![0; npix * 3],
+            depth: vec![0.0; npix],
+            segmentation: vec![0; npix],
+            normal_in_world: vec![[0.0; 3]; npix],
+            intrinsics: k,
+            world_from_camera,
+        };
+        {
+            let mapped = |b: &wgpu::Buffer| {
+                b.slice(..).get_mapped_range().map_err(|e| SimError::Render(format!("reading the frame back: {e:?}")))
+            };
+            let color = mapped(&t.color_buf)?;
+            let data = mapped(&t.data_buf)?;
+            let (cp, dp) = (padded(w * 4) as usize, padded(w * 16) as usize);
+            for row in 0..h as usize {
+                let crow = &color[row * cp..row * cp + w as usize * 4];
+                let drow: &[u32] = bytemuck::cast_slice(&data[row * dp..row * dp + w as usize * 16]);
+                for col in 0..w as usize {
+                    let i = row * w as usize + col;
+                    frame.rgb[i * 3..i * 3 + 3].copy_from_slice(&crow[col * 4..col * 4 + 3]);
+                    let d = &drow[col * 4..col * 4 + 4];
+                    let seg = d[1];
+                    if seg == super::SEG_BACKGROUND {
+                        continue;
+                    }
+                    frame.depth[i] = f32::from_bits(d[0]);
+                    frame.segmentation[i] = seg;
+                    let (nx, ny) = unpack_snorm(d[2]);
+                    let (nz, _) = unpack_snorm(d[3]);
+                    let nv = Vec3::new(nx, ny, nz).normalize_or_zero();
+                    frame.normal_in_world[i] = nv.to_array();
+                }
+            }
+        }
+        t.color_buf.unmap();
+        t.data_buf.unmap();
+        Ok(frame)
+    }
+}

@@ -1,0 +1,159 @@
+//! Offscreen RGB-D + segmentation + normal rendering: a wgpu rasteriser and a
+//! CPU ray caster with the same output. Meshes are loaded once per scene;
+//! a frame only moves part transforms.
+mod cpu;
+mod gpu;
+
+pub use cpu::CpuRenderer;
+pub use gpu::{GpuRenderer, gpu_available};
+
+use crate::camera::{Camera, Intrinsics};
+use crate::error::{Result, SimError};
+use crate::math::{Mat4, Pose3, Vec3};
+use crate::mesh::TriMesh;
+
+/// Segment ids in [`Frame::segmentation`].
+pub const SEG_BACKGROUND: u32 = 0;
+pub const SEG_PLANE: u32 = 1;
+pub const SEG_GRIPPER: u32 = 2;
+/// Object links: `SEG_OBJECT_BASE * object_id + link_index` (object ids from 1).
+pub const SEG_OBJECT_BASE: u32 = 1 << 16;
+
+/// What a segment id stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Segment {
+    Background,
+    Plane,
+    Gripper,
+    Link { object: u32, link: usize },
+}
+
+impl Segment {
+    pub fn decode(id: u32) -> Segment {
+        match id {
+            SEG_BACKGROUND => Segment::Background,
+            SEG_PLANE => Segment::Plane,
+            SEG_GRIPPER => Segment::Gripper,
+            _ => Segment::Link { object: id / SEG_OBJECT_BASE, link: (id % SEG_OBJECT_BASE) as usize },
+        }
+    }
+    pub fn link_id(object: u32, link: usize) -> u32 {
+        SEG_OBJECT_BASE * object + link as u32
+    }
+}
+
+/// A mesh to draw: triangles in the frame of transform slot `part`.
+#[derive(Clone, Debug)]
+pub struct RenderMesh {
+    pub part: usize,
+    pub segment: u32,
+    pub color: [f32; 3],
+    pub mesh: TriMesh,
+}
+
+/// One rendered frame. Images are row-major, `height` rows of `width` pixels.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    /// RGB, 3 bytes per pixel.
+    pub rgb: Vec<u8>,
+    /// Distance along the optical axis in metres; 0 where nothing was hit.
+    pub depth: Vec<f32>,
+    pub segmentation: Vec<u32>,
+    /// Geometric surface normal in world frame, facing the camera (zero on background).
+    pub normal_in_world: Vec<[f32; 3]>,
+    pub intrinsics: Intrinsics,
+    pub world_from_camera: Pose3,
+}
+
+impl Frame {
+    pub fn index(&self, row: u32, col: u32) -> usize {
+        (row * self.width + col) as usize
+    }
+
+    /// Back-projects a pixel centre with its depth into the world frame.
+    pub fn point_in_world(&self, row: u32, col: u32) -> Option<Vec3> {
+        if row >= self.height || col >= self.width {
+            return None;
+        }
+        let d = self.depth[self.index(row, col)];
+        if d <= 0.0 {
+            return None;
+        }
+        let k = &self.intrinsics;
+        let p = Vec3::new((col as f32 + 0.5 - k.cx) / k.fx * d, (row as f32 + 0.5 - k.cy) / k.fy * d, d);
+        Some(self.world_from_camera.transform_point(p))
+    }
+}
+
+/// Which renderer to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RendererKind {
+    Wgpu,
+    Cpu,
+    /// wgpu when an adapter exists, else the CPU renderer (with a notice).
+    Auto,
+}
+
+impl std::str::FromStr for RendererKind {
+    type Err = SimError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "wgpu" | "gpu" => Ok(RendererKind::Wgpu),
+            "cpu" => Ok(RendererKind::Cpu),
+            "auto" => Ok(RendererKind::Auto),
+            _ => Err(SimError::Other(format!("unknown renderer `{s}`; expected wgpu, cpu or auto"))),
+        }
+    }
+}
+
+pub trait Renderer: Send {
+    /// Renderer and adapter, e.g. "wgpu/Vulkan llvmpipe".
+    fn name(&self) -> String;
+    /// Replaces the scene's meshes (once per scene).
+    fn load(&mut self, meshes: &[RenderMesh]) -> Result<()>;
+    /// Renders with the given transform per part slot.
+    fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame>;
+}
+
+/// Creates a renderer; `Auto` falls back to the CPU renderer with a one-line notice on stderr.
+pub fn create_renderer(kind: RendererKind) -> Result<Box<dyn Renderer>> {
+    match kind {
+        RendererKind::Cpu => Ok(Box::new(CpuRenderer::default())),
+        RendererKind::Wgpu => Ok(Box::new(GpuRenderer::new()?)),
+        RendererKind::Auto => match GpuRenderer::new() {
+            Ok(r) => Ok(Box::new(r)),
+            Err(e) => {
+                static ONCE: std::sync::Once = std::sync::Once::new();
+                ONCE.call_once(|| eprintln!("notice: no GPU adapter ({e}); using the CPU renderer"));
+                Ok(Box::new(CpuRenderer::default()))
+            }
+        },
+    }
+}
+
+/// Flat shading with one light, shared by both renderers.
+pub(crate) fn shade(color: [f32; 3], normal: Vec3) -> [u8; 3] {
+    let light = Vec3::new(0.3, -0.6, 0.75).normalize();
+    let k = 0.35 + 0.65 * normal.dot(light).max(0.0);
+    color.map(|c| (c * k * 255.0).round().clamp(0.0, 255.0) as u8)
+}
+
+pub(crate) const PLANE_COLOR: [f32; 3] = [0.62, 0.6, 0.58];
+pub(crate) const GRIPPER_COLOR: [f32; 3] = [0.15, 0.15, 0.18];
+
+/// The floor plane as a mesh in world frame (visual only).
+pub fn plane_mesh(part: usize) -> RenderMesh {
+    let mut m = TriMesh::cuboid(Vec3::new(8.0, 8.0, 0.0));
+    m.triangles.retain(|t| t.iter().all(|&i| m.positions[i as usize].z >= 0.0));
+    RenderMesh { part, segment: SEG_PLANE, color: PLANE_COLOR, mesh: m }
+}
+
+/// The suction gripper drawn as a cup and a rod along +z of its frame.
+pub fn gripper_mesh(part: usize) -> RenderMesh {
+    let mut m = TriMesh::cylinder(0.025, 0.03, 16).transformed(&Pose3::from_translation(Vec3::new(0.0, 0.0, 0.015)));
+    m.append(&TriMesh::cylinder(0.008, 0.25, 8).transformed(&Pose3::from_translation(Vec3::new(0.0, 0.0, 0.155))));
+    RenderMesh { part, segment: SEG_GRIPPER, color: GRIPPER_COLOR, mesh: m }
+}
