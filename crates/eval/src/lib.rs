@@ -1,1 +1,29 @@
+//! umpnet-eval: episodes, reference policies and the UMPNet benchmark. The
+//! one crate that joins the simulator and the policy runtime.
+pub mod bench;
+pub mod episode;
+pub mod policy;
+pub mod scripted;
 
+pub use policy::{Decision, Observation, Policy, StepRecord};
+
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    #[error(transparent)]
+    Sim(#[from] umpnet_sim::SimError),
+    #[error(transparent)]
+    Policy(#[from] umpnet_policy::PolicyError),
+    #[error("{0}")]
+    Episode(String),
+}
+
+pub type Result<T, E = EvalError> = std::result::Result<T, E>;
+
+/// The policies available by name without a model.
+pub fn scripted_policy(name: &str) -> Option<Box<dyn Policy>> {
+    match name {
+        "random" => Some(Box::new(scripted::RandomPolicy::default())),
+        "oracle" => Some(Box::new(scripted::OraclePolicy::default())),
+        _ => None,
+    }
+}

@@ -1,1 +1,8 @@
+//! umpnet-policy: the UMPNet policy runtime. Inputs are RGB-D frames,
+//! intrinsics and a camera pose — from the simulator or a real camera; this
+//! crate never depends on the simulator.
+pub mod error;
+pub mod observation;
 
+pub use error::{PolicyError, Result};
+pub use observation::{CHANNELS, CameraFrame, build_observation};

@@ -39,7 +39,12 @@ impl Camera {
 
     pub fn intrinsics(&self) -> Intrinsics {
         let fx = self.width as f32 / 2.0 / (self.hfov_deg.to_radians() / 2.0).tan();
-        Intrinsics { fx, fy: fx, cx: self.width as f32 / 2.0, cy: self.height as f32 / 2.0 }
+        Intrinsics {
+            fx,
+            fy: fx,
+            cx: self.width as f32 / 2.0,
+            cy: self.height as f32 / 2.0,
+        }
     }
 
     /// Camera pose: maps points in the camera frame to the world frame.
@@ -64,7 +69,9 @@ mod tests {
         assert!((k.fx * p.x / p.z + k.cx - 320.0).abs() < 1e-3);
         assert!((k.fy * p.y / p.z + k.cy - 240.0).abs() < 1e-3);
         // World up appears as image up (negative y).
-        let q = cam.world_from_camera().inverse_transform_point(Vec3::new(0.0, 0.0, 0.5));
+        let q = cam
+            .world_from_camera()
+            .inverse_transform_point(Vec3::new(0.0, 0.0, 0.5));
         assert!(q.y / q.z < p.y / p.z);
     }
 }

@@ -5,7 +5,7 @@ use crate::camera::Camera;
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Pose3, Quat, Vec3};
 use crate::physics::{Articulation, PhysicsConfig};
-use crate::render::{gripper_mesh, plane_mesh, Frame, RenderMesh, Renderer, Segment};
+use crate::render::{Frame, RenderMesh, Renderer, Segment, gripper_mesh, plane_mesh};
 use crate::scene::{Scene, Task};
 use crate::urdf::ObjectModel;
 use std::sync::Arc;
@@ -21,7 +21,12 @@ pub const OBJECT_ID: u32 = 1;
 #[derive(Clone, Debug, PartialEq)]
 pub enum Pick {
     /// On a link that a movable joint moves.
-    Movable { point_in_world: Vec3, normal_in_world: Vec3, link: usize, joint: usize },
+    Movable {
+        point_in_world: Vec3,
+        normal_in_world: Vec3,
+        link: usize,
+        joint: usize,
+    },
     /// Background, floor, gripper or a fixed link: nothing to grasp.
     NoMovableLink,
 }
@@ -62,20 +67,42 @@ impl SimEnv {
     pub fn new(scene: Scene, camera: Camera, mut renderer: Box<dyn Renderer>) -> Result<Self> {
         let model = Arc::new(scene.object.load()?);
         scene.validate(&model)?;
-        let mut art = Articulation::new(model.clone(), scene.world_from_base(), PhysicsConfig::default());
+        let mut art = Articulation::new(
+            model.clone(),
+            scene.world_from_base(),
+            PhysicsConfig::default(),
+        );
         art.set_joint_positions(&scene.joints)?;
         renderer.load(&render_meshes(&model))?;
-        Ok(Self { scene, model, art, camera, renderer, grasp: None })
+        Ok(Self {
+            scene,
+            model,
+            art,
+            camera,
+            renderer,
+            grasp: None,
+        })
     }
 
     /// Same object, another scene: no reloading of meshes.
     pub fn reset(&mut self, scene: Scene) -> Result<()> {
         if scene.object != self.scene.object {
-            *self = Self::new(scene, self.camera.clone(), std::mem::replace(&mut self.renderer, Box::new(crate::render::CpuRenderer::default())))?;
+            *self = Self::new(
+                scene,
+                self.camera.clone(),
+                std::mem::replace(
+                    &mut self.renderer,
+                    Box::new(crate::render::CpuRenderer::default()),
+                ),
+            )?;
             return Ok(());
         }
         scene.validate(&self.model)?;
-        self.art = Articulation::new(self.model.clone(), scene.world_from_base(), PhysicsConfig::default());
+        self.art = Articulation::new(
+            self.model.clone(),
+            scene.world_from_base(),
+            PhysicsConfig::default(),
+        );
         self.art.set_joint_positions(&scene.joints)?;
         self.scene = scene;
         self.grasp = None;
@@ -113,7 +140,9 @@ impl SimEnv {
 
     fn part_transforms(&self) -> Vec<Mat4> {
         let n = self.model.links.len();
-        let mut t: Vec<Mat4> = (0..n).map(|l| self.art.world_from_link(l).to_mat4()).collect();
+        let mut t: Vec<Mat4> = (0..n)
+            .map(|l| self.art.world_from_link(l).to_mat4())
+            .collect();
         t.push(Mat4::IDENTITY); // floor plane
         let gripper = match (&self.grasp, self.art.gripper_position()) {
             (Some(g), Some(p)) => {
@@ -135,9 +164,15 @@ impl SimEnv {
     /// Renders the object in another joint state (e.g. the goal) without
     /// changing the simulation.
     pub fn render_joint_state(&mut self, joints: &[f32]) -> Result<Frame> {
-        let mut shadow = Articulation::new(self.model.clone(), self.scene.world_from_base(), PhysicsConfig::default());
+        let mut shadow = Articulation::new(
+            self.model.clone(),
+            self.scene.world_from_base(),
+            PhysicsConfig::default(),
+        );
         shadow.set_joint_positions(joints)?;
-        let mut t: Vec<Mat4> = (0..self.model.links.len()).map(|l| shadow.world_from_link(l).to_mat4()).collect();
+        let mut t: Vec<Mat4> = (0..self.model.links.len())
+            .map(|l| shadow.world_from_link(l).to_mat4())
+            .collect();
         t.push(Mat4::IDENTITY);
         t.push(Mat4::ZERO);
         self.renderer.render(&self.camera, &t)
@@ -172,13 +207,24 @@ impl SimEnv {
             )));
         }
         let i = frame.index(row, col);
-        let Segment::Link { object: OBJECT_ID, link } = Segment::decode(frame.segmentation[i]) else {
+        let Segment::Link {
+            object: OBJECT_ID,
+            link,
+        } = Segment::decode(frame.segmentation[i])
+        else {
             return Ok(Pick::NoMovableLink);
         };
-        let (Some(joint), Some(point)) = (self.joint_moving_link(link), frame.point_in_world(row, col)) else {
+        let (Some(joint), Some(point)) =
+            (self.joint_moving_link(link), frame.point_in_world(row, col))
+        else {
             return Ok(Pick::NoMovableLink);
         };
-        Ok(Pick::Movable { point_in_world: point, normal_in_world: Vec3::from(frame.normal_in_world[i]), link, joint })
+        Ok(Pick::Movable {
+            point_in_world: point,
+            normal_in_world: Vec3::from(frame.normal_in_world[i]),
+            link,
+            joint,
+        })
     }
 
     /// Position action: grasp what is under the pixel. Returns the pick; the
@@ -186,13 +232,27 @@ impl SimEnv {
     /// not on the goal joint).
     pub fn step_position(&mut self, frame: &Frame, row: u32, col: u32) -> Result<Pick> {
         if self.grasp.is_some() {
-            return Err(SimError::InvalidAction("the position action was already taken in this episode".into()));
+            return Err(SimError::InvalidAction(
+                "the position action was already taken in this episode".into(),
+            ));
         }
         let pick = self.pick(frame, row, col)?;
-        if let Pick::Movable { point_in_world, normal_in_world, link, joint } = &pick {
+        if let Pick::Movable {
+            point_in_world,
+            normal_in_world,
+            link,
+            joint,
+        } = &pick
+        {
             self.art.attach(*point_in_world, *link)?;
-            let normal_in_link = self.art.world_from_link(*link).rotation.inverse() * *normal_in_world;
-            self.grasp = Some(Grasp { link: *link, joint: *joint, normal_in_link, j0: self.art.joint_position(*joint) });
+            let normal_in_link =
+                self.art.world_from_link(*link).rotation.inverse() * *normal_in_world;
+            self.grasp = Some(Grasp {
+                link: *link,
+                joint: *joint,
+                normal_in_link,
+                j0: self.art.joint_position(*joint),
+            });
         }
         Ok(pick)
     }
@@ -211,24 +271,52 @@ impl SimEnv {
     /// and leave the state untouched.
     pub fn step_direction(&mut self, direction: Vec3) -> Result<StepLabels> {
         let Some(g) = self.grasp.clone() else {
-            return Err(SimError::InvalidAction("step_direction before a position action".into()));
+            return Err(SimError::InvalidAction(
+                "step_direction before a position action".into(),
+            ));
         };
         if !direction.is_finite() || direction.length() < 1e-6 {
-            return Err(SimError::InvalidAction(format!("direction {direction} must be finite and non-zero")));
+            return Err(SimError::InvalidAction(format!(
+                "direction {direction} must be finite and non-zero"
+            )));
         }
         let out = self.art.move_gripper(direction.normalize(), g.joint)?;
         let jm = &self.model.joints[g.joint];
-        Ok(labels(out.joint_before, out.joint_after, g.j0, jm.lower, jm.upper, out.suction_lost))
+        Ok(labels(
+            out.joint_before,
+            out.joint_after,
+            g.j0,
+            jm.lower,
+            jm.upper,
+            out.suction_lost,
+        ))
     }
 }
 
 /// The paper's labels for one action (pure function, tested on its own).
-pub fn labels(before: f32, after: f32, j0: f32, lower: f32, upper: f32, suction_lost: bool) -> StepLabels {
+pub fn labels(
+    before: f32,
+    after: f32,
+    j0: f32,
+    lower: f32,
+    upper: f32,
+    suction_lost: bool,
+) -> StepLabels {
     let r_dist = (after - before).abs();
     // A move from (numerically) the start is forward by definition.
-    let from_start = if (before - j0).abs() < 1e-3 { 0.0 } else { before - j0 };
+    let from_start = if (before - j0).abs() < 1e-3 {
+        0.0
+    } else {
+        before - j0
+    };
     let gamma = (after - before) * from_start;
-    let aot = if r_dist <= DELTA { 0 } else if gamma >= 0.0 { 1 } else { -1 };
+    let aot = if r_dist <= DELTA {
+        0
+    } else if gamma >= 0.0 {
+        1
+    } else {
+        -1
+    };
     let tol = 1e-3 + 1e-3 * (upper - lower).abs().min(10.0);
     StepLabels {
         joint_before: before,

@@ -9,8 +9,8 @@ pub mod physics;
 pub mod urdf;
 
 pub use error::{Result, SimError};
-pub mod objects;
 pub mod camera;
-pub mod scene;
 pub mod env;
+pub mod objects;
 pub mod render;
+pub mod scene;

@@ -15,13 +15,21 @@ impl TriMesh {
     pub fn append(&mut self, other: &TriMesh) {
         let base = self.positions.len() as u32;
         self.positions.extend_from_slice(&other.positions);
-        self.triangles
-            .extend(other.triangles.iter().map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+        self.triangles.extend(
+            other
+                .triangles
+                .iter()
+                .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+        );
     }
 
     pub fn transformed(&self, pose: &Pose3) -> TriMesh {
         TriMesh {
-            positions: self.positions.iter().map(|p| pose.transform_point(*p)).collect(),
+            positions: self
+                .positions
+                .iter()
+                .map(|p| pose.transform_point(*p))
+                .collect(),
             triangles: self.triangles.clone(),
         }
     }
@@ -36,7 +44,11 @@ impl TriMesh {
     /// Axis-aligned bounds, or None for an empty mesh.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.positions.first()?;
-        Some(self.positions.iter().fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))))
+        Some(
+            self.positions
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))),
+        )
     }
 
     /// Axis-aligned box centred at the origin with the given full size.
@@ -53,14 +65,23 @@ impl TriMesh {
             .collect();
         // Counter-clockwise seen from outside.
         let triangles = vec![
-            [0, 2, 1], [1, 2, 3], // -z
-            [4, 5, 6], [5, 7, 6], // +z
-            [0, 1, 4], [1, 5, 4], // -y
-            [2, 6, 3], [3, 6, 7], // +y
-            [0, 4, 2], [2, 4, 6], // -x
-            [1, 3, 5], [3, 7, 5], // +x
+            [0, 2, 1],
+            [1, 2, 3], // -z
+            [4, 5, 6],
+            [5, 7, 6], // +z
+            [0, 1, 4],
+            [1, 5, 4], // -y
+            [2, 6, 3],
+            [3, 6, 7], // +y
+            [0, 4, 2],
+            [2, 4, 6], // -x
+            [1, 3, 5],
+            [3, 7, 5], // +x
         ];
-        TriMesh { positions, triangles }
+        TriMesh {
+            positions,
+            triangles,
+        }
     }
 
     /// Cylinder along +Z centred at the origin (URDF convention).
@@ -87,7 +108,10 @@ impl TriMesh {
             triangles.push([bottom, b1, b0]);
             triangles.push([top, t0, t1]);
         }
-        TriMesh { positions, triangles }
+        TriMesh {
+            positions,
+            triangles,
+        }
     }
 
     /// UV sphere centred at the origin.
@@ -100,7 +124,11 @@ impl TriMesh {
                 let phi = s as f32 / segments as f32 * std::f32::consts::TAU;
                 positions.push(
                     radius
-                        * Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()),
+                        * Vec3::new(
+                            theta.sin() * phi.cos(),
+                            theta.sin() * phi.sin(),
+                            theta.cos(),
+                        ),
                 );
             }
         }
@@ -115,7 +143,10 @@ impl TriMesh {
                 triangles.push([b, c, d]);
             }
         }
-        TriMesh { positions, triangles }
+        TriMesh {
+            positions,
+            triangles,
+        }
     }
 
     /// Reads a Wavefront OBJ file: `v` and `f` records (polygons are fanned;
@@ -129,7 +160,11 @@ impl TriMesh {
     }
 
     pub fn parse_obj(text: &str, path: &Path) -> Result<TriMesh> {
-        let err = |line: usize, what: String| SimError::Mesh { file: path.to_path_buf(), line, what };
+        let err = |line: usize, what: String| SimError::Mesh {
+            file: path.to_path_buf(),
+            line,
+            what,
+        };
         let mut mesh = TriMesh::default();
         let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
         for (i, line) in text.lines().enumerate() {
@@ -146,7 +181,10 @@ impl TriMesh {
                             err(lineno, format!("vertex coordinate `{tok}` is not a number"))
                         })?;
                         if !c.is_finite() {
-                            return Err(err(lineno, format!("vertex coordinate `{tok}` is not finite")));
+                            return Err(err(
+                                lineno,
+                                format!("vertex coordinate `{tok}` is not finite"),
+                            ));
                         }
                     }
                     mesh.positions.push(Vec3::from(xyz));
@@ -182,7 +220,8 @@ impl TriMesh {
                 })
                 .collect::<Result<Vec<_>>>()?;
             for k in 1..resolved.len() - 1 {
-                mesh.triangles.push([resolved[0], resolved[k], resolved[k + 1]]);
+                mesh.triangles
+                    .push([resolved[0], resolved[k], resolved[k + 1]]);
             }
         }
         if mesh.triangles.is_empty() {
@@ -219,9 +258,15 @@ mod tests {
     #[test]
     fn obj_errors_name_line() {
         let e = TriMesh::parse_obj("v 0 0 0\nv 1 x 0\n", Path::new("bad.obj")).unwrap_err();
-        assert_eq!(e.to_string(), "bad.obj:2: vertex coordinate `x` is not a number");
+        assert_eq!(
+            e.to_string(),
+            "bad.obj:2: vertex coordinate `x` is not a number"
+        );
         let e = TriMesh::parse_obj("v 0 0 0\nf 1 2 3\n", Path::new("b.obj")).unwrap_err();
-        assert!(e.to_string().contains("b.obj:2: face index 2 out of range"), "{e}");
+        assert!(
+            e.to_string().contains("b.obj:2: face index 2 out of range"),
+            "{e}"
+        );
     }
 
     #[test]

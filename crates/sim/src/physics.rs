@@ -2,7 +2,7 @@
 //! action primitive. No contacts anywhere (the reference protocol): only
 //! articulated dynamics, joint limits, the suction joint and the gripper drive.
 use crate::error::{Result, SimError};
-use crate::math::{rotation_x_to, Pose3, Vec3};
+use crate::math::{Pose3, Vec3, rotation_x_to};
 use crate::mesh::TriMesh;
 use crate::urdf::{JointKind, ObjectModel};
 use rapier3d::prelude::*;
@@ -92,7 +92,9 @@ impl Articulation {
             MassProperties::with_inertia_matrix(link.com_in_link, link.mass, link.inertia_in_link)
         };
         link_bodies[model.root] = bodies.insert(
-            RigidBodyBuilder::fixed().pose(world_from_base).additional_mass_properties(mprops(model.root)),
+            RigidBodyBuilder::fixed()
+                .pose(world_from_base)
+                .additional_mass_properties(mprops(model.root)),
         );
         let mut joint_handles = Vec::with_capacity(model.joints.len());
         for j in &model.joints {
@@ -115,12 +117,20 @@ impl Articulation {
                 .local_frame2(frame_rot)
                 .contacts_enabled(false);
             match j.kind {
-                JointKind::Revolute => builder = builder.limits(JointAxis::AngX, [j.lower, j.upper]),
-                JointKind::Prismatic => builder = builder.limits(JointAxis::LinX, [j.lower, j.upper]),
+                JointKind::Revolute => {
+                    builder = builder.limits(JointAxis::AngX, [j.lower, j.upper])
+                }
+                JointKind::Prismatic => {
+                    builder = builder.limits(JointAxis::LinX, [j.lower, j.upper])
+                }
                 _ => {}
             }
-            let handle =
-                multibody_joints.insert(link_bodies[j.parent], link_bodies[j.child], builder.build(), true);
+            let handle = multibody_joints.insert(
+                link_bodies[j.parent],
+                link_bodies[j.child],
+                builder.build(),
+                true,
+            );
             joint_handles.push(handle);
         }
         let params = IntegrationParameters {
@@ -154,13 +164,19 @@ impl Articulation {
 
     fn configure_joint_dynamics(&mut self) {
         for (j, joint) in self.model.joints.iter().enumerate() {
-            let Some(handle) = self.joint_handles[j] else { continue };
-            let Some((mb, link_id)) = self.multibody_joints.get_mut(handle) else { continue };
+            let Some(handle) = self.joint_handles[j] else {
+                continue;
+            };
+            let Some((mb, link_id)) = self.multibody_joints.get_mut(handle) else {
+                continue;
+            };
             mb.set_self_contacts_enabled(false);
             if !joint.kind.is_movable() {
                 continue;
             }
-            let Some(dof) = mb.link(link_id).map(|l| l.assembly_id()) else { continue };
+            let Some(dof) = mb.link(link_id).map(|l| l.assembly_id()) else {
+                continue;
+            };
             mb.damping_mut()[dof] = joint.damping.max(self.config.min_joint_damping);
             mb.frictions_mut()[dof] = joint.friction.max(self.config.joint_friction);
         }
@@ -168,12 +184,17 @@ impl Articulation {
 
     /// The one multibody of the object (None for an object without joints).
     fn multibody(&self) -> Option<MultibodyIndex> {
-        self.multibody_joints.rigid_body_link(self.link_bodies[self.model.root]).map(|l| l.multibody)
+        self.multibody_joints
+            .rigid_body_link(self.link_bodies[self.model.root])
+            .map(|l| l.multibody)
     }
 
     /// Recomputes link poses from the joint coordinates (after building or a reset).
     fn refresh_kinematics(&mut self) {
-        if let Some(mb) = self.multibody().and_then(|i| self.multibody_joints.get_multibody_mut(i)) {
+        if let Some(mb) = self
+            .multibody()
+            .and_then(|i| self.multibody_joints.get_multibody_mut(i))
+        {
             // `true`: the fixed root takes the base pose from its rigid body.
             mb.forward_kinematics(&self.bodies, true);
             mb.update_rigid_bodies(&mut self.bodies, true);
@@ -200,9 +221,17 @@ impl Articulation {
 
     /// Current value of a joint (rad or m); 0 for fixed joints.
     pub fn joint_position(&self, joint: usize) -> f32 {
-        let Some(kind) = self.model.joints.get(joint).map(|j| j.kind) else { return 0.0 };
-        let Some((idx, link_id, _)) = self.dof_of(joint) else { return 0.0 };
-        let Some(link) = self.multibody_joints.get_multibody(idx).and_then(|mb| mb.link(link_id)) else {
+        let Some(kind) = self.model.joints.get(joint).map(|j| j.kind) else {
+            return 0.0;
+        };
+        let Some((idx, link_id, _)) = self.dof_of(joint) else {
+            return 0.0;
+        };
+        let Some(link) = self
+            .multibody_joints
+            .get_multibody(idx)
+            .and_then(|mb| mb.link(link_id))
+        else {
             return 0.0;
         };
         let c = link.joint().coords();
@@ -214,11 +243,15 @@ impl Articulation {
     }
 
     pub fn joint_positions(&self) -> Vec<f32> {
-        (0..self.model.joints.len()).map(|j| self.joint_position(j)).collect()
+        (0..self.model.joints.len())
+            .map(|j| self.joint_position(j))
+            .collect()
     }
 
     pub fn joint_velocity(&self, joint: usize) -> f32 {
-        let Some((idx, _, dof)) = self.dof_of(joint) else { return 0.0 };
+        let Some((idx, _, dof)) = self.dof_of(joint) else {
+            return 0.0;
+        };
         if !self.model.joints[joint].kind.is_movable() {
             return 0.0;
         }
@@ -240,7 +273,10 @@ impl Articulation {
             )));
         }
         if let Some(bad) = values.iter().position(|v| !v.is_finite()) {
-            return Err(SimError::InvalidScene(format!("joint value {bad} is not finite: {}", values[bad])));
+            return Err(SimError::InvalidScene(format!(
+                "joint value {bad} is not finite: {}",
+                values[bad]
+            )));
         }
         self.release();
         for (j, &v) in values.iter().enumerate() {
@@ -250,12 +286,12 @@ impl Articulation {
             }
             let target = v.clamp(joint.lower, joint.upper);
             let delta = target - self.joint_position(j);
-            if let Some((idx, _, dof)) = self.dof_of(j) {
-                if let Some(mb) = self.multibody_joints.get_multibody_mut(idx) {
-                    let mut disp = vec![0.0; mb.ndofs()];
-                    disp[dof] = delta;
-                    mb.apply_displacements(&disp);
-                }
+            if let Some((idx, _, dof)) = self.dof_of(j)
+                && let Some(mb) = self.multibody_joints.get_multibody_mut(idx)
+            {
+                let mut disp = vec![0.0; mb.ndofs()];
+                disp[dof] = delta;
+                mb.apply_displacements(&disp);
             }
         }
         self.zero_velocities();
@@ -264,22 +300,28 @@ impl Articulation {
     }
 
     fn zero_velocities(&mut self) {
-        if let Some(mb) = self.multibody().and_then(|i| self.multibody_joints.get_multibody_mut(i)) {
+        if let Some(mb) = self
+            .multibody()
+            .and_then(|i| self.multibody_joints.get_multibody_mut(i))
+        {
             mb.generalized_velocity_mut().fill(0.0);
         }
         let handles: Vec<RigidBodyHandle> = self.bodies.iter().map(|(h, _)| h).collect();
         for h in handles {
-            if let Some(b) = self.bodies.get_mut(h) {
-                if b.is_dynamic() {
-                    b.set_linvel(Vec3::ZERO, false);
-                    b.set_angvel(Vec3::ZERO, false);
-                }
+            if let Some(b) = self.bodies.get_mut(h)
+                && b.is_dynamic()
+            {
+                b.set_linvel(Vec3::ZERO, false);
+                b.set_angvel(Vec3::ZERO, false);
             }
         }
     }
 
     pub fn world_from_link(&self, link: usize) -> Pose3 {
-        self.bodies.get(self.link_bodies[link]).map(|b| *b.position()).unwrap_or(Pose3::IDENTITY)
+        self.bodies
+            .get(self.link_bodies[link])
+            .map(|b| *b.position())
+            .unwrap_or(Pose3::IDENTITY)
     }
 
     /// World-frame pose of a joint's frame (its axis is `axis_in_joint` there).
@@ -291,7 +333,10 @@ impl Articulation {
     /// Joint axis (unit) and a point on it, in world frame.
     pub fn joint_axis_in_world(&self, joint: usize) -> (Vec3, Vec3) {
         let pose = self.world_from_joint(joint);
-        (pose.rotation * self.model.joints[joint].axis_in_joint, pose.translation)
+        (
+            pose.rotation * self.model.joints[joint].axis_in_joint,
+            pose.translation,
+        )
     }
 
     /// The triangles of each link in world frame (with the visual colour).
@@ -312,13 +357,18 @@ impl Articulation {
     }
 
     pub fn grasped_link(&self) -> Option<usize> {
-        self.gripper.as_ref().filter(|g| g.suction.is_some()).map(|g| g.link)
+        self.gripper
+            .as_ref()
+            .filter(|g| g.suction.is_some())
+            .map(|g| g.link)
     }
 
     /// Attaches the suction gripper at `point_in_world` on `link`.
     pub fn attach(&mut self, point_in_world: Vec3, link: usize) -> Result<()> {
         if link >= self.model.links.len() || !point_in_world.is_finite() {
-            return Err(SimError::InvalidAction(format!("cannot attach to link {link} at {point_in_world}")));
+            return Err(SimError::InvalidAction(format!(
+                "cannot attach to link {link} at {point_in_world}"
+            )));
         }
         self.release();
         let cfg = &self.config;
@@ -341,7 +391,8 @@ impl Articulation {
                 .motor_position(axis, 0.0, stiffness, damping)
                 .motor_max_force(axis, cfg.gripper_max_force);
         }
-        self.impulse_joints.insert(target, body, drive.build(), true);
+        self.impulse_joints
+            .insert(target, body, drive.build(), true);
         let world_from_link = self.world_from_link(link);
         let point_in_link = world_from_link.inverse_transform_point(point_in_world);
         let suction = GenericJointBuilder::new(JointAxesMask::LOCKED_SPHERICAL_AXES)
@@ -349,8 +400,15 @@ impl Articulation {
             .local_anchor2(point_in_link)
             .contacts_enabled(false)
             .build();
-        let suction = self.impulse_joints.insert(body, self.link_bodies[link], suction, true);
-        self.gripper = Some(Gripper { body, target, suction: Some(suction), link });
+        let suction = self
+            .impulse_joints
+            .insert(body, self.link_bodies[link], suction, true);
+        self.gripper = Some(Gripper {
+            body,
+            target,
+            suction: Some(suction),
+            link,
+        });
         Ok(())
     }
 
@@ -393,7 +451,9 @@ impl Articulation {
     /// force-limited, until it stops moving. `joint` is the joint whose value is reported.
     pub fn move_gripper(&mut self, direction: Vec3, joint: usize) -> Result<ActionOutcome> {
         let Some(g) = self.gripper.as_ref() else {
-            return Err(SimError::InvalidAction("no grasp: a position action must come first".into()));
+            return Err(SimError::InvalidAction(
+                "no grasp: a position action must come first".into(),
+            ));
         };
         let (body, target) = (g.body, g.target);
         let start = self.bodies[body].translation();
@@ -440,10 +500,15 @@ impl Articulation {
 
     /// Breaks the suction when its force passed the limit; true when it did now.
     fn check_suction(&mut self) -> bool {
-        let Some(g) = self.gripper.as_mut() else { return false };
+        let Some(g) = self.gripper.as_mut() else {
+            return false;
+        };
         let Some(h) = g.suction else { return false };
-        let Some(j) = self.impulse_joints.get(h) else { return false };
-        let force = Vec3::new(j.impulses[0], j.impulses[1], j.impulses[2]).length() / self.params.dt;
+        let Some(j) = self.impulse_joints.get(h) else {
+            return false;
+        };
+        let force =
+            Vec3::new(j.impulses[0], j.impulses[1], j.impulses[2]).length() / self.params.dt;
         if force > self.config.suction_max_force {
             self.impulse_joints.remove(h, true);
             g.suction = None;

@@ -3,7 +3,7 @@
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Quat, Vec3};
 use crate::objects::{self, Category};
-use crate::urdf::{load_urdf, ObjectModel};
+use crate::urdf::{ObjectModel, load_urdf};
 use rand::Rng;
 use std::path::PathBuf;
 
@@ -20,7 +20,9 @@ impl std::str::FromStr for Task {
         match s {
             "exploration" | "explore" => Ok(Task::Exploration),
             "goal" => Ok(Task::Goal),
-            _ => Err(SimError::Other(format!("unknown task `{s}`; expected exploration or goal"))),
+            _ => Err(SimError::Other(format!(
+                "unknown task `{s}`; expected exploration or goal"
+            ))),
         }
     }
 }
@@ -29,7 +31,11 @@ impl std::str::FromStr for Task {
 #[serde(tag = "kind", rename_all = "lowercase")]
 pub enum ObjectSource {
     /// A procedurally generated instance, made again from its seed.
-    Generated { category: Category, index: u32, dataset_seed: u64 },
+    Generated {
+        category: Category,
+        index: u32,
+        dataset_seed: u64,
+    },
     /// A URDF file on disk (PartNet-Mobility or generated).
     File { path: PathBuf },
 }
@@ -37,9 +43,11 @@ pub enum ObjectSource {
 impl ObjectSource {
     pub fn load(&self) -> Result<ObjectModel> {
         match self {
-            ObjectSource::Generated { category, index, dataset_seed } => {
-                objects::generate(*category, *index, *dataset_seed).model()
-            }
+            ObjectSource::Generated {
+                category,
+                index,
+                dataset_seed,
+            } => objects::generate(*category, *index, *dataset_seed).model(),
             ObjectSource::File { path } => load_urdf(path),
         }
     }
@@ -70,10 +78,12 @@ pub struct Scene {
 /// that the paper's 15 steps can reach it.
 pub const GOAL_STEPS: usize = 15;
 
-
 impl Scene {
     pub fn world_from_base(&self) -> Pose3 {
-        Pose3::from_parts(Vec3::new(self.base_xy[0], self.base_xy[1], 0.0), Quat::from_rotation_z(self.base_yaw))
+        Pose3::from_parts(
+            Vec3::new(self.base_xy[0], self.base_xy[1], 0.0),
+            Quat::from_rotation_z(self.base_yaw),
+        )
     }
 
     pub fn to_json(&self) -> String {
@@ -88,21 +98,45 @@ impl Scene {
     pub fn validate(&self, model: &ObjectModel) -> Result<()> {
         let n = model.joints.len();
         if self.joints.len() != n {
-            return Err(SimError::InvalidScene(format!("`joints` has {} values, the object has {n} joints", self.joints.len())));
+            return Err(SimError::InvalidScene(format!(
+                "`joints` has {} values, the object has {n} joints",
+                self.joints.len()
+            )));
         }
-        if !self.base_xy.iter().chain([&self.base_yaw]).chain(&self.joints).all(|v| v.is_finite()) {
-            return Err(SimError::InvalidScene("base pose and joint values must be finite".into()));
+        if !self
+            .base_xy
+            .iter()
+            .chain([&self.base_yaw])
+            .chain(&self.joints)
+            .all(|v| v.is_finite())
+        {
+            return Err(SimError::InvalidScene(
+                "base pose and joint values must be finite".into(),
+            ));
         }
         if let Some(g) = &self.goal {
             if g.joints.len() != n {
-                return Err(SimError::InvalidScene(format!("`goal.joints` has {} values, the object has {n} joints", g.joints.len())));
+                return Err(SimError::InvalidScene(format!(
+                    "`goal.joints` has {} values, the object has {n} joints",
+                    g.joints.len()
+                )));
             }
-            if !model.joints.get(g.joint).is_some_and(|j| j.kind.is_movable()) {
-                return Err(SimError::InvalidScene(format!("`goal.joint` {} is not a movable joint", g.joint)));
+            if !model
+                .joints
+                .get(g.joint)
+                .is_some_and(|j| j.kind.is_movable())
+            {
+                return Err(SimError::InvalidScene(format!(
+                    "`goal.joint` {} is not a movable joint",
+                    g.joint
+                )));
             }
         }
         if model.movable_joints().next().is_none() {
-            return Err(SimError::InvalidScene(format!("{} has no movable joint", model.source.display())));
+            return Err(SimError::InvalidScene(format!(
+                "{} has no movable joint",
+                model.source.display()
+            )));
         }
         Ok(())
     }
@@ -110,7 +144,11 @@ impl Scene {
 
 /// One joint's initial value: 15% near the lower limit, 15% at the upper, else uniform.
 fn sample_joint_value(rng: &mut impl Rng, lower: f32, upper: f32) -> f32 {
-    let (lo, hi) = if lower.is_finite() && upper.is_finite() { (lower, upper) } else { (-std::f32::consts::PI, std::f32::consts::PI) };
+    let (lo, hi) = if lower.is_finite() && upper.is_finite() {
+        (lower, upper)
+    } else {
+        (-std::f32::consts::PI, std::f32::consts::PI)
+    };
     let r: f32 = rng.random();
     if r < 0.15 {
         lo + 0.1 * (hi - lo)
@@ -131,12 +169,21 @@ pub fn sample_scene(
     model: &ObjectModel,
     goal_joints: Option<&[usize]>,
 ) -> Result<Scene> {
-    let base_xy = [rng.random_range(-0.05..0.05), -0.5 + rng.random_range(-0.05..0.05)];
+    let base_xy = [
+        rng.random_range(-0.05..0.05),
+        -0.5 + rng.random_range(-0.05..0.05),
+    ];
     let base_yaw = rng.random_range(-45f32..=45.0).to_radians();
     let mut joints: Vec<f32> = model
         .joints
         .iter()
-        .map(|j| if j.kind.is_movable() { sample_joint_value(rng, j.lower, j.upper) } else { 0.0 })
+        .map(|j| {
+            if j.kind.is_movable() {
+                sample_joint_value(rng, j.lower, j.upper)
+            } else {
+                0.0
+            }
+        })
         .collect();
     let goal = match task {
         Task::Exploration => None,
@@ -146,18 +193,40 @@ pub fn sample_scene(
                 None => model.movable_joints().map(|(i, _)| i).collect(),
             };
             if candidates.is_empty() {
-                return Err(SimError::InvalidScene(format!("{}: no movable joint for a goal", model.source.display())));
+                return Err(SimError::InvalidScene(format!(
+                    "{}: no movable joint for a goal",
+                    model.source.display()
+                )));
             }
             let j = candidates[rng.random_range(0..candidates.len())];
             let jm = &model.joints[j];
-            let (lo, hi) = if jm.lower.is_finite() { (jm.lower, jm.upper) } else { (-1.5, 1.5) };
+            let (lo, hi) = if jm.lower.is_finite() {
+                (jm.lower, jm.upper)
+            } else {
+                (-1.5, 1.5)
+            };
             let reach = (hi - lo).min(GOAL_STEPS as f32 * crate::env::DELTA);
-            let (goal_v, init_v) = if rng.random_bool(0.5) { (hi, hi - reach) } else { (lo, lo + reach) };
+            let (goal_v, init_v) = if rng.random_bool(0.5) {
+                (hi, hi - reach)
+            } else {
+                (lo, lo + reach)
+            };
             joints[j] = init_v;
             let mut goal = joints.clone();
             goal[j] = goal_v;
-            Some(GoalSpec { joint: j, joints: goal })
+            Some(GoalSpec {
+                joint: j,
+                joints: goal,
+            })
         }
     };
-    Ok(Scene { task, category, object, base_xy, base_yaw, joints, goal })
+    Ok(Scene {
+        task,
+        category,
+        object,
+        base_xy,
+        base_yaw,
+        joints,
+        goal,
+    })
 }

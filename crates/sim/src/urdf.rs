@@ -76,7 +76,10 @@ pub struct ObjectModel {
 
 impl ObjectModel {
     pub fn movable_joints(&self) -> impl Iterator<Item = (usize, &JointModel)> {
-        self.joints.iter().enumerate().filter(|(_, j)| j.kind.is_movable())
+        self.joints
+            .iter()
+            .enumerate()
+            .filter(|(_, j)| j.kind.is_movable())
     }
     pub fn joint_by_name(&self, name: &str) -> Option<usize> {
         self.joints.iter().position(|j| j.name == name)
@@ -102,7 +105,10 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
 }
 
 fn urdf_err(file: &Path, what: impl Into<String>) -> SimError {
-    SimError::Urdf { file: file.to_path_buf(), what: what.into() }
+    SimError::Urdf {
+        file: file.to_path_buf(),
+        what: what.into(),
+    }
 }
 
 /// Parses URDF text; `path` names the file in errors and anchors relative mesh paths.
@@ -119,7 +125,13 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
         .map_err(|e| urdf_err(path, format!("not well-formed XML: {e}")))?;
     let root = doc.root_element();
     if root.tag_name().name() != "robot" {
-        return Err(urdf_err(path, format!("root element is <{}>, expected <robot>", root.tag_name().name())));
+        return Err(urdf_err(
+            path,
+            format!(
+                "root element is <{}>, expected <robot>",
+                root.tag_name().name()
+            ),
+        ));
     }
     let line_of = |n: roxmltree::Node| doc.text_pos_at(n.range().start).row;
     let mut mended = String::with_capacity(text.len() + 256);
@@ -150,7 +162,9 @@ fn mend(
     let name = node.tag_name().name();
     let _ = write!(out, "<{name}");
     for a in node.attributes() {
-        let value = if NUMERIC_ATTRS.contains(&a.name()) && !(name == "material" || name == "link" || name == "joint") {
+        let value = if NUMERIC_ATTRS.contains(&a.name())
+            && !(name == "material" || name == "link" || name == "joint")
+        {
             mend_numbers(a.value()).ok_or_else(|| {
                 urdf_err(
                     path,
@@ -187,14 +201,19 @@ fn mend(
 }
 
 fn escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('"', "&quot;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('"', "&quot;")
 }
 
 /// Keeps each whitespace-separated token that is a number, or the longest
 /// numeric prefix of one with stray characters (`0.5,` -> `0.5`).
 fn mend_numbers(value: &str) -> Option<String> {
     let mut parts = Vec::new();
-    for tok in value.split(|c: char| c.is_whitespace() || c == ',').filter(|t| !t.is_empty()) {
+    for tok in value
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|t| !t.is_empty())
+    {
         if tok.parse::<f64>().is_ok() {
             parts.push(tok.to_owned());
             continue;
@@ -239,9 +258,15 @@ fn geometry_mesh(
         }
         urdf_rs::Geometry::Sphere { radius } => TriMesh::sphere(*radius as f32, 12, 24),
         urdf_rs::Geometry::Mesh { filename, scale } => {
-            let rel = filename.trim_start_matches("package://").trim_start_matches("file://");
+            let rel = filename
+                .trim_start_matches("package://")
+                .trim_start_matches("file://");
             let mesh_path = base_dir.join(rel);
-            let ext = mesh_path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+            let ext = mesh_path
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or("")
+                .to_ascii_lowercase();
             if let Some(mesh) = meshes(&mesh_path) {
                 return Ok(match scale {
                     Some(s) => mesh.scaled(Vec3::from(s.0.map(|v| v as f32))),
@@ -251,11 +276,17 @@ fn geometry_mesh(
             if ext != "obj" {
                 return Err(urdf_err(
                     file,
-                    format!("link `{link}`: mesh {} is not a Wavefront .obj file (the only mesh format supported)", mesh_path.display()),
+                    format!(
+                        "link `{link}`: mesh {} is not a Wavefront .obj file (the only mesh format supported)",
+                        mesh_path.display()
+                    ),
                 ));
             }
             if !mesh_path.is_file() {
-                return Err(urdf_err(file, format!("link `{link}`: mesh file {} not found", mesh_path.display())));
+                return Err(urdf_err(
+                    file,
+                    format!("link `{link}`: mesh file {} not found", mesh_path.display()),
+                ));
             }
             let mesh = TriMesh::read_obj(&mesh_path)?;
             match scale {
@@ -291,7 +322,14 @@ fn build_model(
     let named_colors: HashMap<String, [f32; 3]> = robot
         .materials
         .iter()
-        .filter_map(|m| m.color.as_ref().map(|c| (m.name.clone(), [c.rgba.0[0] as f32, c.rgba.0[1] as f32, c.rgba.0[2] as f32])))
+        .filter_map(|m| {
+            m.color.as_ref().map(|c| {
+                (
+                    m.name.clone(),
+                    [c.rgba.0[0] as f32, c.rgba.0[1] as f32, c.rgba.0[2] as f32],
+                )
+            })
+        })
         .collect();
     let mut link_index = HashMap::new();
     let mut links = Vec::with_capacity(robot.links.len());
@@ -301,19 +339,36 @@ fn build_model(
         }
         let mut visuals = Vec::new();
         for v in &l.visual {
-            let mesh = geometry_mesh(&v.geometry, base_dir, path, &l.name, meshes)?.transformed(&pose_of(&v.origin));
-            visuals.push(VisualModel { mesh_in_link: mesh, color: material_color(&v.material, &named_colors) });
+            let mesh = geometry_mesh(&v.geometry, base_dir, path, &l.name, meshes)?
+                .transformed(&pose_of(&v.origin));
+            visuals.push(VisualModel {
+                mesh_in_link: mesh,
+                color: material_color(&v.material, &named_colors),
+            });
         }
         let (mass, com, inertia, derived) = if with_inertial.contains(&l.name) {
             let i = &l.inertial;
             let m = i.mass.value as f32;
             if !(m.is_finite() && m > 0.0) {
-                return Err(urdf_err(path, format!("link `{}`: <mass value> must be a positive number, found {}", l.name, i.mass.value)));
+                return Err(urdf_err(
+                    path,
+                    format!(
+                        "link `{}`: <mass value> must be a positive number, found {}",
+                        l.name, i.mass.value
+                    ),
+                ));
             }
             let t = &i.inertia;
             let local = Mat3::from_cols_array(&[
-                t.ixx as f32, t.ixy as f32, t.ixz as f32, t.ixy as f32, t.iyy as f32, t.iyz as f32,
-                t.ixz as f32, t.iyz as f32, t.izz as f32,
+                t.ixx as f32,
+                t.ixy as f32,
+                t.ixz as f32,
+                t.ixy as f32,
+                t.iyy as f32,
+                t.iyz as f32,
+                t.ixz as f32,
+                t.iyz as f32,
+                t.izz as f32,
             ]);
             let frame = pose_of(&i.origin);
             let r = Mat3::from_quat(frame.rotation);
@@ -323,17 +378,26 @@ fn build_model(
             // of a solid box filling the collision (else visual) bounds.
             let mut shape = TriMesh::default();
             for c in &l.collision {
-                shape.append(&geometry_mesh(&c.geometry, base_dir, path, &l.name, meshes)?.transformed(&pose_of(&c.origin)));
+                shape.append(
+                    &geometry_mesh(&c.geometry, base_dir, path, &l.name, meshes)?
+                        .transformed(&pose_of(&c.origin)),
+                );
             }
             if shape.positions.is_empty() {
                 for v in &visuals {
                     shape.append(&v.mesh_in_link);
                 }
             }
-            let (lo, hi) = shape.bounds().unwrap_or((Vec3::splat(-0.05), Vec3::splat(0.05)));
+            let (lo, hi) = shape
+                .bounds()
+                .unwrap_or((Vec3::splat(-0.05), Vec3::splat(0.05)));
             let s = (hi - lo).max(Vec3::splat(0.01));
             let m = 1.0f32;
-            let d = Vec3::new(s.y * s.y + s.z * s.z, s.x * s.x + s.z * s.z, s.x * s.x + s.y * s.y) * (m / 12.0);
+            let d = Vec3::new(
+                s.y * s.y + s.z * s.z,
+                s.x * s.x + s.z * s.z,
+                s.x * s.x + s.y * s.y,
+            ) * (m / 12.0);
             (m, (lo + hi) * 0.5, Mat3::from_diagonal(d), true)
         };
         links.push(LinkModel {
@@ -349,15 +413,21 @@ fn build_model(
     let mut joints = Vec::with_capacity(robot.joints.len());
     let mut parent_of: HashMap<usize, String> = HashMap::new();
     for j in &robot.joints {
-        let at = joint_lines.get(&j.name).map(|l| format!(" at line {l}")).unwrap_or_default();
-        let jerr = |what: String| urdf_err(path, format!("<joint name=\"{}\">{at}: {what}", j.name));
+        let at = joint_lines
+            .get(&j.name)
+            .map(|l| format!(" at line {l}"))
+            .unwrap_or_default();
+        let jerr =
+            |what: String| urdf_err(path, format!("<joint name=\"{}\">{at}: {what}", j.name));
         let kind = match &j.joint_type {
             urdf_rs::JointType::Fixed => JointKind::Fixed,
             urdf_rs::JointType::Revolute => JointKind::Revolute,
             urdf_rs::JointType::Continuous => JointKind::Continuous,
             urdf_rs::JointType::Prismatic => JointKind::Prismatic,
             other => {
-                return Err(jerr(format!("joint type {other:?} is not supported (expected fixed, revolute, continuous or prismatic)")));
+                return Err(jerr(format!(
+                    "joint type {other:?} is not supported (expected fixed, revolute, continuous or prismatic)"
+                )));
             }
         };
         let parent = *link_index
@@ -374,25 +444,38 @@ fn build_model(
         }
         let axis = Vec3::from(j.axis.xyz.0.map(|v| v as f32));
         if kind.is_movable() && !(axis.is_finite() && axis.length() > 1e-6) {
-            return Err(jerr(format!("<axis xyz> must be a non-zero finite vector, found {:?}", j.axis.xyz.0)));
+            return Err(jerr(format!(
+                "<axis xyz> must be a non-zero finite vector, found {:?}",
+                j.axis.xyz.0
+            )));
         }
         let (lower, upper) = match kind {
             JointKind::Revolute | JointKind::Prismatic => {
                 let (lo, hi) = (j.limit.lower, j.limit.upper);
                 if !lo.is_finite() || !hi.is_finite() {
-                    return Err(jerr(format!("<limit> lower/upper must be finite numbers, found lower={lo} upper={hi}")));
+                    return Err(jerr(format!(
+                        "<limit> lower/upper must be finite numbers, found lower={lo} upper={hi}"
+                    )));
                 }
                 if lo > hi {
-                    return Err(jerr(format!("<limit> lower ({lo}) is greater than upper ({hi})")));
+                    return Err(jerr(format!(
+                        "<limit> lower ({lo}) is greater than upper ({hi})"
+                    )));
                 }
                 (lo as f32, hi as f32)
             }
             JointKind::Continuous => (f32::NEG_INFINITY, f32::INFINITY),
             JointKind::Fixed => (0.0, 0.0),
         };
-        let (damping, friction) = j.dynamics.as_ref().map(|d| (d.damping as f32, d.friction as f32)).unwrap_or((0.0, 0.0));
+        let (damping, friction) = j
+            .dynamics
+            .as_ref()
+            .map(|d| (d.damping as f32, d.friction as f32))
+            .unwrap_or((0.0, 0.0));
         if !(damping.is_finite() && damping >= 0.0 && friction.is_finite() && friction >= 0.0) {
-            return Err(jerr(format!("<dynamics> damping/friction must be non-negative numbers, found {damping}/{friction}")));
+            return Err(jerr(format!(
+                "<dynamics> damping/friction must be non-negative numbers, found {damping}/{friction}"
+            )));
         }
         joints.push(JointModel {
             name: j.name.clone(),
@@ -400,20 +483,36 @@ fn build_model(
             parent,
             child,
             parent_from_joint: pose_of(&j.origin),
-            axis_in_joint: if kind.is_movable() { axis.normalize() } else { Vec3::X },
+            axis_in_joint: if kind.is_movable() {
+                axis.normalize()
+            } else {
+                Vec3::X
+            },
             lower,
             upper,
             damping,
             friction,
         });
     }
-    let roots: Vec<usize> = (0..links.len()).filter(|i| !parent_of.contains_key(i)).collect();
+    let roots: Vec<usize> = (0..links.len())
+        .filter(|i| !parent_of.contains_key(i))
+        .collect();
     let root = match roots.as_slice() {
         [r] => *r,
-        [] => return Err(urdf_err(path, "every link has a parent joint: kinematic loop, no root link")),
+        [] => {
+            return Err(urdf_err(
+                path,
+                "every link has a parent joint: kinematic loop, no root link",
+            ));
+        }
         many => {
             let names: Vec<&str> = many.iter().map(|&i| links[i].name.as_str()).collect();
-            return Err(urdf_err(path, format!("links {names:?} have no parent joint: expected one connected tree with a single root")));
+            return Err(urdf_err(
+                path,
+                format!(
+                    "links {names:?} have no parent joint: expected one connected tree with a single root"
+                ),
+            ));
         }
     };
     // Order joints root-first; a joint left unordered sits on a cycle detached from the root.
@@ -429,7 +528,13 @@ fn build_model(
         }
     }
     if let Some(i) = reached.iter().position(|r| !r) {
-        return Err(urdf_err(path, format!("link `{}` is not connected to the root `{}`: kinematic loop", links[i].name, links[root].name)));
+        return Err(urdf_err(
+            path,
+            format!(
+                "link `{}` is not connected to the root `{}`: kinematic loop",
+                links[i].name, links[root].name
+            ),
+        ));
     }
     Ok(ObjectModel {
         source: path.to_path_buf(),
@@ -451,7 +556,9 @@ mod tests {
 <link name="door"><visual><geometry><box size="0.1 1 1"/></geometry></visual></link>"#;
 
     fn err_of(body: &str) -> String {
-        parse_urdf(&wrap(body), Path::new("obj/mobility.urdf")).unwrap_err().to_string()
+        parse_urdf(&wrap(body), Path::new("obj/mobility.urdf"))
+            .unwrap_err()
+            .to_string()
     }
 
     #[test]
@@ -476,7 +583,11 @@ mod tests {
         let e = err_of(&format!(
             r#"{BASE}<joint name="j" type="revolute"><parent link="base"/><child link="lid"/><axis xyz="0 0 1"/><limit lower="0" upper="1"/></joint>"#
         ));
-        assert!(e.contains("<joint name=\"j\"> at line") && e.contains("child link `lid` does not exist"), "{e}");
+        assert!(
+            e.contains("<joint name=\"j\"> at line")
+                && e.contains("child link `lid` does not exist"),
+            "{e}"
+        );
         let e = err_of(&format!(
             r#"{BASE}<joint name="j" type="prismatic"><parent link="base"/><child link="door"/><axis xyz="1 0 0"/><limit lower="NaN" upper="1"/></joint>"#
         ));
@@ -490,8 +601,13 @@ mod tests {
                <joint name="b" type="fixed"><parent link="door"/><child link="base"/></joint>"#
         ));
         assert!(e.contains("kinematic loop"), "{e}");
-        let e = err_of(r#"<link name="a"><visual><geometry><mesh filename="textured_objs/x.obj"/></geometry></visual></link>"#);
-        assert!(e.contains("mesh file obj/textured_objs/x.obj not found"), "{e}");
+        let e = err_of(
+            r#"<link name="a"><visual><geometry><mesh filename="textured_objs/x.obj"/></geometry></visual></link>"#,
+        );
+        assert!(
+            e.contains("mesh file obj/textured_objs/x.obj not found"),
+            "{e}"
+        );
         let e = err_of(&format!(
             r#"{BASE}<joint name="j" type="revolute"><parent link="base"/><child link="door"/><axis xyz="0 0 0"/><limit lower="0" upper="1"/></joint>"#
         ));

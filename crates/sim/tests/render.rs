@@ -2,13 +2,21 @@
 use rand::SeedableRng;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::SimEnv;
-use umpnet_sim::objects::{nth_instance, Category, InstanceSplit};
-use umpnet_sim::render::{create_renderer, gpu_available, RendererKind, SEG_OBJECT_BASE};
-use umpnet_sim::scene::{sample_scene, ObjectSource, Task};
+use umpnet_sim::objects::{Category, InstanceSplit, nth_instance};
+use umpnet_sim::render::{RendererKind, SEG_OBJECT_BASE, create_renderer, gpu_available};
+use umpnet_sim::scene::{ObjectSource, Task, sample_scene};
 
 fn scene(c: Category, k: u32) -> umpnet_sim::scene::Scene {
-    let split = if c.is_train() { InstanceSplit::Train } else { InstanceSplit::Test };
-    let object = ObjectSource::Generated { category: c, index: nth_instance(c, split, k), dataset_seed: 0 };
+    let split = if c.is_train() {
+        InstanceSplit::Train
+    } else {
+        InstanceSplit::Test
+    };
+    let object = ObjectSource::Generated {
+        category: c,
+        index: nth_instance(c, split, k),
+        dataset_seed: 0,
+    };
     let model = object.load().unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(k as u64);
     sample_scene(&mut rng, Task::Exploration, Some(c), object, &model, None).unwrap()
@@ -17,7 +25,10 @@ fn scene(c: Category, k: u32) -> umpnet_sim::scene::Scene {
 #[test]
 fn wgpu_matches_cpu_reference_on_every_category() {
     if !gpu_available() {
-        assert!(std::env::var_os("UMPNET_REQUIRE_WGPU").is_none(), "UMPNET_REQUIRE_WGPU is set but no wgpu adapter exists");
+        assert!(
+            std::env::var_os("UMPNET_REQUIRE_WGPU").is_none(),
+            "UMPNET_REQUIRE_WGPU is set but no wgpu adapter exists"
+        );
         eprintln!("skipped: no wgpu adapter");
         return;
     }
@@ -26,8 +37,18 @@ fn wgpu_matches_cpu_reference_on_every_category() {
     for &c in Category::ALL {
         for k in 0..2 {
             let s = scene(c, k);
-            let mut gpu = SimEnv::new(s.clone(), camera.clone(), create_renderer(RendererKind::Wgpu).unwrap()).unwrap();
-            let mut cpu = SimEnv::new(s, camera.clone(), create_renderer(RendererKind::Cpu).unwrap()).unwrap();
+            let mut gpu = SimEnv::new(
+                s.clone(),
+                camera.clone(),
+                create_renderer(RendererKind::Wgpu).unwrap(),
+            )
+            .unwrap();
+            let mut cpu = SimEnv::new(
+                s,
+                camera.clone(),
+                create_renderer(RendererKind::Cpu).unwrap(),
+            )
+            .unwrap();
             let (a, b) = (gpu.render().unwrap(), cpu.render().unwrap());
             let object = |s: u32| s >= SEG_OBJECT_BASE;
             let (mut obj, mut depth_ok, mut seg_diff) = (0usize, 0usize, 0usize);
@@ -47,9 +68,21 @@ fn wgpu_matches_cpu_reference_on_every_category() {
             let seg_frac = seg_diff as f64 / a.depth.len() as f64;
             worst_depth = worst_depth.min(depth_frac);
             worst_seg = worst_seg.max(seg_frac);
-            assert!(depth_frac >= 0.99, "{c} scene {k}: depth within 1 mm on {:.2}% of object pixels", depth_frac * 100.0);
-            assert!(seg_frac <= 0.01, "{c} scene {k}: segmentation differs on {:.2}% of pixels", seg_frac * 100.0);
+            assert!(
+                depth_frac >= 0.99,
+                "{c} scene {k}: depth within 1 mm on {:.2}% of object pixels",
+                depth_frac * 100.0
+            );
+            assert!(
+                seg_frac <= 0.01,
+                "{c} scene {k}: segmentation differs on {:.2}% of pixels",
+                seg_frac * 100.0
+            );
         }
     }
-    eprintln!("worst: depth within 1 mm on {:.2}% of object pixels; segmentation differs on {:.3}%", worst_depth * 100.0, worst_seg * 100.0);
+    eprintln!(
+        "worst: depth within 1 mm on {:.2}% of object pixels; segmentation differs on {:.3}%",
+        worst_depth * 100.0,
+        worst_seg * 100.0
+    );
 }

@@ -41,12 +41,24 @@ impl Parts {
         self.add_link("base", Vec3::ZERO, boxes, color)
     }
 
-    fn add_link(&mut self, name: &str, origin: Vec3, boxes: &[(Vec3, Vec3)], color: [f32; 3]) -> usize {
+    fn add_link(
+        &mut self,
+        name: &str,
+        origin: Vec3,
+        boxes: &[(Vec3, Vec3)],
+        color: [f32; 3],
+    ) -> usize {
         let mut mesh = TriMesh::default();
         for (centre, size) in boxes {
-            mesh.append(&TriMesh::cuboid(*size).transformed(&Pose3::from_translation(*centre - origin)));
+            mesh.append(
+                &TriMesh::cuboid(*size).transformed(&Pose3::from_translation(*centre - origin)),
+            );
         }
-        self.links.push(PartLink { name: name.to_owned(), mesh, color });
+        self.links.push(PartLink {
+            name: name.to_owned(),
+            mesh,
+            color,
+        });
         self.origins.push(origin);
         self.links.len() - 1
     }
@@ -111,8 +123,16 @@ impl Parts {
             let _ = writeln!(
                 s,
                 "  <joint name=\"joint_{k}\" type=\"{kind}\">\n    <origin xyz=\"{:.5} {:.5} {:.5}\" rpy=\"0 0 0\"/>\n    <axis xyz=\"{:.5} {:.5} {:.5}\"/>\n    <parent link=\"{}\"/>\n    <child link=\"{}\"/>\n    <limit lower=\"{:.5}\" upper=\"{:.5}\" effort=\"100\" velocity=\"1\"/>\n    <dynamics damping=\"2\" friction=\"0.5\"/>\n  </joint>",
-                j.origin.x, j.origin.y, j.origin.z, j.axis.x, j.axis.y, j.axis.z,
-                self.links[j.parent].name, self.links[j.child].name, j.lower, j.upper
+                j.origin.x,
+                j.origin.y,
+                j.origin.z,
+                j.axis.x,
+                j.axis.y,
+                j.axis.z,
+                self.links[j.parent].name,
+                self.links[j.child].name,
+                j.lower,
+                j.upper
             );
         }
         s.push_str("</robot>\n");

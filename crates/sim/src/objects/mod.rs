@@ -5,7 +5,7 @@ mod families;
 
 use crate::error::{Result, SimError};
 use crate::mesh::TriMesh;
-use crate::urdf::{parse_urdf_with, ObjectModel};
+use crate::urdf::{ObjectModel, parse_urdf_with};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::collections::HashMap;
@@ -57,10 +57,17 @@ impl std::str::FromStr for Category {
             "cabinet" => "storagefurniture",
             other => other,
         };
-        Category::ALL.iter().copied().find(|c| c.name().to_ascii_lowercase() == alias).ok_or_else(|| {
-            let names: Vec<&str> = Category::ALL.iter().map(|c| c.name()).collect();
-            SimError::Other(format!("unknown category `{s}`; expected one of {}", names.join(", ")))
-        })
+        Category::ALL
+            .iter()
+            .copied()
+            .find(|c| c.name().to_ascii_lowercase() == alias)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Category::ALL.iter().map(|c| c.name()).collect();
+                SimError::Other(format!(
+                    "unknown category `{s}`; expected one of {}",
+                    names.join(", ")
+                ))
+            })
     }
 }
 
@@ -76,7 +83,11 @@ pub enum InstanceSplit {
 /// Which instances of a category belong to a split: every fifth instance of a
 /// training category is held out for testing.
 pub fn instance_split(category: Category, index: u32) -> InstanceSplit {
-    if category.is_train() && index % 5 != 4 { InstanceSplit::Train } else { InstanceSplit::Test }
+    if category.is_train() && index % 5 != 4 {
+        InstanceSplit::Train
+    } else {
+        InstanceSplit::Test
+    }
 }
 
 /// The `k`-th instance index of a category within a split.
@@ -97,7 +108,10 @@ pub struct GeneratedObject {
 }
 
 fn instance_seed(dataset_seed: u64, category: Category, index: u32) -> u64 {
-    let c = Category::ALL.iter().position(|x| *x == category).unwrap_or(0) as u64;
+    let c = Category::ALL
+        .iter()
+        .position(|x| *x == category)
+        .unwrap_or(0) as u64;
     dataset_seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (c << 40) ^ index as u64
 }
 
@@ -128,21 +142,32 @@ impl GeneratedObject {
 
     /// Where this object lives under a dataset root.
     pub fn urdf_path(&self, root: &Path) -> PathBuf {
-        root.join(self.category.name()).join(self.id()).join("mobility.urdf")
+        root.join(self.category.name())
+            .join(self.id())
+            .join("mobility.urdf")
     }
 
     /// Loads the object without touching the disk.
     pub fn model(&self) -> Result<ObjectModel> {
         let dir = PathBuf::from(format!("generated/{}/{}", self.category.name(), self.index));
-        let meshes: HashMap<PathBuf, &TriMesh> = self.meshes.iter().map(|(rel, m)| (dir.join(rel), m)).collect();
-        parse_urdf_with(&self.urdf, &dir.join("mobility.urdf"), &|p| meshes.get(p).map(|m| (*m).clone()))
+        let meshes: HashMap<PathBuf, &TriMesh> = self
+            .meshes
+            .iter()
+            .map(|(rel, m)| (dir.join(rel), m))
+            .collect();
+        parse_urdf_with(&self.urdf, &dir.join("mobility.urdf"), &|p| {
+            meshes.get(p).map(|m| (*m).clone())
+        })
     }
 
     /// Writes `mobility.urdf` and `textured_objs/*.obj` under `root`.
     pub fn write(&self, root: &Path) -> Result<PathBuf> {
         let urdf = self.urdf_path(root);
         let dir = urdf.parent().unwrap_or(root).to_path_buf();
-        let io = |file: &Path, e: std::io::Error| SimError::Io { file: file.to_path_buf(), source: e };
+        let io = |file: &Path, e: std::io::Error| SimError::Io {
+            file: file.to_path_buf(),
+            source: e,
+        };
         std::fs::create_dir_all(dir.join("textured_objs")).map_err(|e| io(&dir, e))?;
         for (rel, mesh) in &self.meshes {
             let p = dir.join(rel);
@@ -154,7 +179,12 @@ impl GeneratedObject {
 }
 
 /// Writes `per_category` instances of each category and `split.json` under `root`.
-pub fn write_dataset(root: &Path, categories: &[Category], per_category: u32, dataset_seed: u64) -> Result<serde_json::Value> {
+pub fn write_dataset(
+    root: &Path,
+    categories: &[Category],
+    per_category: u32,
+    dataset_seed: u64,
+) -> Result<serde_json::Value> {
     let mut split = serde_json::Map::new();
     for &c in categories {
         let mut train = Vec::new();
@@ -175,6 +205,9 @@ pub fn write_dataset(root: &Path, categories: &[Category], per_category: u32, da
     let value = serde_json::json!({"dataset_seed": dataset_seed, "categories": split});
     let path = root.join("split.json");
     let text = serde_json::to_string_pretty(&value).map_err(|e| SimError::Other(e.to_string()))?;
-    std::fs::write(&path, text).map_err(|e| SimError::Io { file: path, source: e })?;
+    std::fs::write(&path, text).map_err(|e| SimError::Io {
+        file: path,
+        source: e,
+    })?;
     Ok(value)
 }

@@ -1,7 +1,7 @@
 //! Pure-CPU renderer: one ray per pixel centre against a BVH (parry3d) of the
 //! scene's triangles in world frame. Independent of the rasteriser, so tests
 //! use it as a reference; also the fallback when no GPU adapter exists.
-use super::{shade, Frame, RenderMesh, Renderer, SEG_BACKGROUND};
+use super::{Frame, RenderMesh, Renderer, SEG_BACKGROUND, shade};
 use crate::camera::Camera;
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Vec3};
@@ -26,14 +26,19 @@ impl Renderer for CpuRenderer {
     fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame> {
         let (w, h) = (camera.width, camera.height);
         if w == 0 || h == 0 || w > 4096 || h > 4096 {
-            return Err(SimError::Render(format!("resolution {h}x{w} out of range 1..=4096")));
+            return Err(SimError::Render(format!(
+                "resolution {h}x{w} out of range 1..=4096"
+            )));
         }
         // Triangles in world frame, each remembering its mesh.
         let mut positions = Vec::new();
         let mut triangles = Vec::new();
         let mut owner = Vec::new();
         for (mi, m) in self.meshes.iter().enumerate() {
-            let t = part_transforms.get(m.part).copied().unwrap_or(Mat4::IDENTITY);
+            let t = part_transforms
+                .get(m.part)
+                .copied()
+                .unwrap_or(Mat4::IDENTITY);
             if t.determinant().abs() < 1e-9 {
                 continue; // hidden part
             }
@@ -70,11 +75,17 @@ impl Renderer for CpuRenderer {
         let forward = world_from_camera.rotation * Vec3::Z;
         for row in 0..h {
             for col in 0..w {
-                let dir_cam = Vec3::new((col as f32 + 0.5 - k.cx) / k.fx, (row as f32 + 0.5 - k.cy) / k.fy, 1.0);
+                let dir_cam = Vec3::new(
+                    (col as f32 + 0.5 - k.cx) / k.fx,
+                    (row as f32 + 0.5 - k.cy) / k.fy,
+                    1.0,
+                );
                 let dir = world_from_camera.rotation * dir_cam;
                 let ray = Ray::new(eye, dir);
-                let Some(hit) = bvh.cast_local_ray_and_get_normal(&ray, camera.far, true) else { continue };
-                let tri = hit.subshape as u32;
+                let Some(hit) = bvh.cast_local_ray_and_get_normal(&ray, camera.far, true) else {
+                    continue;
+                };
+                let tri = hit.subshape;
                 if tri >= ntri {
                     continue;
                 }

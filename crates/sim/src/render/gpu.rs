@@ -26,7 +26,9 @@ struct Gpu {
 static GPU: OnceLock<std::result::Result<Arc<Gpu>, String>> = OnceLock::new();
 
 fn gpu() -> Result<Arc<Gpu>> {
-    GPU.get_or_init(|| init().map(Arc::new)).clone().map_err(SimError::Render)
+    GPU.get_or_init(|| init().map(Arc::new))
+        .clone()
+        .map_err(SimError::Render)
 }
 
 /// True when a wgpu adapter can be created here.
@@ -182,11 +184,24 @@ impl GpuRenderer {
             label: None,
             layout: &gpu.layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: camera_buf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: parts_buf.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: camera_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: parts_buf.as_entire_binding(),
+                },
             ],
         });
-        Ok(Self { gpu, vertices: None, camera_buf, parts_buf, bind_group, targets: None })
+        Ok(Self {
+            gpu,
+            vertices: None,
+            camera_buf,
+            parts_buf,
+            bind_group,
+            targets: None,
+        })
     }
 
     fn targets(&mut self, width: u32, height: u32) -> &Targets {
@@ -195,7 +210,11 @@ impl GpuRenderer {
             let tex = |format, usage| {
                 device.create_texture(&wgpu::TextureDescriptor {
                     label: None,
-                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                    size: wgpu::Extent3d {
+                        width,
+                        height,
+                        depth_or_array_layers: 1,
+                    },
                     mip_level_count: 1,
                     sample_count: 1,
                     dimension: wgpu::TextureDimension::D2,
@@ -234,7 +253,10 @@ fn pack_color(c: [f32; 3]) -> u32 {
 fn unpack_snorm(v: u32) -> (f32, f32) {
     let lo = (v & 0xFFFF) as u16 as i16;
     let hi = (v >> 16) as u16 as i16;
-    ((lo as f32 / 32767.0).max(-1.0), (hi as f32 / 32767.0).max(-1.0))
+    (
+        (lo as f32 / 32767.0).max(-1.0),
+        (hi as f32 / 32767.0).max(-1.0),
+    )
 }
 
 impl Renderer for GpuRenderer {
@@ -246,22 +268,37 @@ impl Renderer for GpuRenderer {
         let mut verts = Vec::new();
         for m in meshes {
             if m.part >= MAX_PARTS {
-                return Err(SimError::Render(format!("part slot {} exceeds the {MAX_PARTS} supported", m.part)));
+                return Err(SimError::Render(format!(
+                    "part slot {} exceeds the {MAX_PARTS} supported",
+                    m.part
+                )));
             }
             let color = pack_color(m.color);
             for t in &m.mesh.triangles {
                 for &i in t {
                     let p = m.mesh.positions[i as usize];
-                    verts.push(Vertex { position: p.to_array(), part: m.part as u32, color, segment: m.segment });
+                    verts.push(Vertex {
+                        position: p.to_array(),
+                        part: m.part as u32,
+                        color,
+                        segment: m.segment,
+                    });
                 }
             }
         }
-        let _guard = self.gpu.lock.lock().map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
-        let buf = self.gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("vertices"),
-            contents: bytemuck::cast_slice(&verts),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
+        let _guard = self
+            .gpu
+            .lock
+            .lock()
+            .map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
+        let buf = self
+            .gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vertices"),
+                contents: bytemuck::cast_slice(&verts),
+                usage: wgpu::BufferUsages::VERTEX,
+            });
         self.vertices = Some((buf, verts.len() as u32));
         Ok(())
     }
@@ -269,7 +306,9 @@ impl Renderer for GpuRenderer {
     fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame> {
         let (w, h) = (camera.width, camera.height);
         if w == 0 || h == 0 || w > 4096 || h > 4096 {
-            return Err(SimError::Render(format!("resolution {h}x{w} out of range 1..=4096")));
+            return Err(SimError::Render(format!(
+                "resolution {h}x{w} out of range 1..=4096"
+            )));
         }
         let k = camera.intrinsics();
         let world_from_camera = camera.world_from_camera();
@@ -278,7 +317,12 @@ impl Renderer for GpuRenderer {
         let clip_from_camera = Mat4::from_cols_array_2d(&[
             [2.0 * k.fx / w as f32, 0.0, 0.0, 0.0],
             [0.0, -2.0 * k.fy / h as f32, 0.0, 0.0],
-            [(2.0 * k.cx - w as f32) / w as f32, 1.0 - 2.0 * k.cy / h as f32, f / (f - n), 1.0],
+            [
+                (2.0 * k.cx - w as f32) / w as f32,
+                1.0 - 2.0 * k.cy / h as f32,
+                f / (f - n),
+                1.0,
+            ],
             [0.0, 0.0, -f * n / (f - n), 0.0],
         ]);
         let light = Vec3::new(0.3, -0.6, 0.75).normalize();
@@ -293,9 +337,14 @@ impl Renderer for GpuRenderer {
             *slot = t.to_cols_array_2d();
         }
         let gpu = self.gpu.clone();
-        let _guard = gpu.lock.lock().map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
-        gpu.queue.write_buffer(&self.camera_buf, 0, bytemuck::bytes_of(&uniform));
-        gpu.queue.write_buffer(&self.parts_buf, 0, bytemuck::cast_slice(&parts));
+        let _guard = gpu
+            .lock
+            .lock()
+            .map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
+        gpu.queue
+            .write_buffer(&self.camera_buf, 0, bytemuck::bytes_of(&uniform));
+        gpu.queue
+            .write_buffer(&self.parts_buf, 0, bytemuck::cast_slice(&parts));
         let bind_group = self.bind_group.clone();
         let vertices = self.vertices.as_ref().map(|(b, c)| (b.clone(), *c));
         let t = self.targets(w, h);
@@ -309,7 +358,10 @@ impl Renderer for GpuRenderer {
                     view,
                     depth_slice: None,
                     resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
                 })
             };
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -317,7 +369,10 @@ impl Renderer for GpuRenderer {
                 color_attachments: &[attach(&color_view), attach(&data_view)],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                     view: &depth_view,
-                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
                     stencil_ops: None,
                 }),
                 timestamp_writes: None,
@@ -331,16 +386,25 @@ impl Renderer for GpuRenderer {
                 pass.draw(0..*count, 0..1);
             }
         }
-        let copy = |enc: &mut wgpu::CommandEncoder, tex: &wgpu::Texture, buf: &wgpu::Buffer, bpp: u32| {
-            enc.copy_texture_to_buffer(
-                tex.as_image_copy(),
-                wgpu::TexelCopyBufferInfo {
-                    buffer: buf,
-                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded(w * bpp)), rows_per_image: Some(h) },
-                },
-                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-            );
-        };
+        let copy =
+            |enc: &mut wgpu::CommandEncoder, tex: &wgpu::Texture, buf: &wgpu::Buffer, bpp: u32| {
+                enc.copy_texture_to_buffer(
+                    tex.as_image_copy(),
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: buf,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: 0,
+                            bytes_per_row: Some(padded(w * bpp)),
+                            rows_per_image: Some(h),
+                        },
+                    },
+                    wgpu::Extent3d {
+                        width: w,
+                        height: h,
+                        depth_or_array_layers: 1,
+                    },
+                );
+            };
         copy(&mut enc, &t.color, &t.color_buf, 4);
         copy(&mut enc, &t.data, &t.data_buf, 16);
         gpu.queue.submit([enc.finish()]);
@@ -362,14 +426,17 @@ impl Renderer for GpuRenderer {
         };
         {
             let mapped = |b: &wgpu::Buffer| {
-                b.slice(..).get_mapped_range().map_err(|e| SimError::Render(format!("reading the frame back: {e:?}")))
+                b.slice(..)
+                    .get_mapped_range()
+                    .map_err(|e| SimError::Render(format!("reading the frame back: {e:?}")))
             };
             let color = mapped(&t.color_buf)?;
             let data = mapped(&t.data_buf)?;
             let (cp, dp) = (padded(w * 4) as usize, padded(w * 16) as usize);
             for row in 0..h as usize {
                 let crow = &color[row * cp..row * cp + w as usize * 4];
-                let drow: &[u32] = bytemuck::cast_slice(&data[row * dp..row * dp + w as usize * 16]);
+                let drow: &[u32] =
+                    bytemuck::cast_slice(&data[row * dp..row * dp + w as usize * 16]);
                 for col in 0..w as usize {
                     let i = row * w as usize + col;
                     frame.rgb[i * 3..i * 3 + 3].copy_from_slice(&crow[col * 4..col * 4 + 3]);

@@ -34,7 +34,10 @@ impl Segment {
             SEG_BACKGROUND => Segment::Background,
             SEG_PLANE => Segment::Plane,
             SEG_GRIPPER => Segment::Gripper,
-            _ => Segment::Link { object: id / SEG_OBJECT_BASE, link: (id % SEG_OBJECT_BASE) as usize },
+            _ => Segment::Link {
+                object: id / SEG_OBJECT_BASE,
+                link: (id % SEG_OBJECT_BASE) as usize,
+            },
         }
     }
     pub fn link_id(object: u32, link: usize) -> u32 {
@@ -82,7 +85,11 @@ impl Frame {
             return None;
         }
         let k = &self.intrinsics;
-        let p = Vec3::new((col as f32 + 0.5 - k.cx) / k.fx * d, (row as f32 + 0.5 - k.cy) / k.fy * d, d);
+        let p = Vec3::new(
+            (col as f32 + 0.5 - k.cx) / k.fx * d,
+            (row as f32 + 0.5 - k.cy) / k.fy * d,
+            d,
+        );
         Some(self.world_from_camera.transform_point(p))
     }
 }
@@ -104,7 +111,9 @@ impl std::str::FromStr for RendererKind {
             "wgpu" | "gpu" => Ok(RendererKind::Wgpu),
             "cpu" => Ok(RendererKind::Cpu),
             "auto" => Ok(RendererKind::Auto),
-            _ => Err(SimError::Other(format!("unknown renderer `{s}`; expected wgpu, cpu or auto"))),
+            _ => Err(SimError::Other(format!(
+                "unknown renderer `{s}`; expected wgpu, cpu or auto"
+            ))),
         }
     }
 }
@@ -127,7 +136,9 @@ pub fn create_renderer(kind: RendererKind) -> Result<Box<dyn Renderer>> {
             Ok(r) => Ok(Box::new(r)),
             Err(e) => {
                 static ONCE: std::sync::Once = std::sync::Once::new();
-                ONCE.call_once(|| eprintln!("notice: no GPU adapter ({e}); using the CPU renderer"));
+                ONCE.call_once(|| {
+                    eprintln!("notice: no GPU adapter ({e}); using the CPU renderer")
+                });
                 Ok(Box::new(CpuRenderer::default()))
             }
         },
@@ -147,13 +158,28 @@ pub(crate) const GRIPPER_COLOR: [f32; 3] = [0.15, 0.15, 0.18];
 /// The floor plane as a mesh in world frame (visual only).
 pub fn plane_mesh(part: usize) -> RenderMesh {
     let mut m = TriMesh::cuboid(Vec3::new(8.0, 8.0, 0.0));
-    m.triangles.retain(|t| t.iter().all(|&i| m.positions[i as usize].z >= 0.0));
-    RenderMesh { part, segment: SEG_PLANE, color: PLANE_COLOR, mesh: m }
+    m.triangles
+        .retain(|t| t.iter().all(|&i| m.positions[i as usize].z >= 0.0));
+    RenderMesh {
+        part,
+        segment: SEG_PLANE,
+        color: PLANE_COLOR,
+        mesh: m,
+    }
 }
 
 /// The suction gripper drawn as a cup and a rod along +z of its frame.
 pub fn gripper_mesh(part: usize) -> RenderMesh {
-    let mut m = TriMesh::cylinder(0.025, 0.03, 16).transformed(&Pose3::from_translation(Vec3::new(0.0, 0.0, 0.015)));
-    m.append(&TriMesh::cylinder(0.008, 0.25, 8).transformed(&Pose3::from_translation(Vec3::new(0.0, 0.0, 0.155))));
-    RenderMesh { part, segment: SEG_GRIPPER, color: GRIPPER_COLOR, mesh: m }
+    let mut m = TriMesh::cylinder(0.025, 0.03, 16)
+        .transformed(&Pose3::from_translation(Vec3::new(0.0, 0.0, 0.015)));
+    m.append(
+        &TriMesh::cylinder(0.008, 0.25, 8)
+            .transformed(&Pose3::from_translation(Vec3::new(0.0, 0.0, 0.155))),
+    );
+    RenderMesh {
+        part,
+        segment: SEG_GRIPPER,
+        color: GRIPPER_COLOR,
+        mesh: m,
+    }
 }

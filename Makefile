@@ -1,0 +1,39 @@
+# The two commands: `make demo` and `make test`. Both install what they need first.
+SHELL := /bin/bash
+UMPNET := target/release/umpnet
+PY := .venv/bin/python
+export XDG_RUNTIME_DIR ?= /tmp
+
+.PHONY: install build demo test lint test-rust test-python clean
+
+install:
+	@bash scripts/install.sh
+
+build: install
+	cargo build --release
+
+demo: build
+	$(UMPNET) objects generate --out data/objects --per-category 20
+	$(UMPNET) explore --category StorageFurniture --seed 1 --policy oracle --out out/explore
+	$(UMPNET) goal --category Microwave --seed 3 --policy oracle --out out/goal
+	$(UMPNET) eval --task exploration --episodes-per-category 10 --policies oracle,random --out out/eval-exploration
+	$(UMPNET) eval --task goal --episodes-per-category 10 --policies oracle,random --out out/eval-goal
+	$(UMPNET) bench --frames 20 --actions 100
+	@echo "pictures and results in out/"
+
+lint: install
+	cargo fmt --all --check
+	cargo clippy --release --all-targets -- -D warnings
+	.venv/bin/ruff check tests train_py
+
+test-rust: install
+	UMPNET_REQUIRE_WGPU=1 cargo test --release
+
+test-python: build
+	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests
+
+test: lint test-rust test-python
+
+clean:
+	cargo clean
+	rm -rf out runs

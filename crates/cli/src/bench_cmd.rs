@@ -1,0 +1,201 @@
+use crate::Ctx;
+use anyhow::Result;
+use std::time::Instant;
+use umpnet_eval::scripted::OraclePolicy;
+use umpnet_eval::{Decision, Observation, Policy};
+use umpnet_policy::{CameraFrame, build_observation};
+use umpnet_sim::camera::Camera;
+use umpnet_sim::env::{Pick, SimEnv};
+use umpnet_sim::objects::Category;
+use umpnet_sim::render::{Frame, RendererKind, create_renderer};
+use umpnet_sim::scene::Task;
+
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    /// Frames per renderer figure.
+    #[arg(long, default_value_t = 40)]
+    pub frames: usize,
+    /// Actions per physics figure.
+    #[arg(long, default_value_t = 300)]
+    pub actions: usize,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+pub fn camera_frame(f: &Frame) -> CameraFrame<'_> {
+    let m = f.world_from_camera.to_mat4().transpose().to_cols_array_2d();
+    CameraFrame {
+        width: f.width as usize,
+        height: f.height as usize,
+        rgb: &f.rgb,
+        depth: &f.depth,
+        intrinsics: [
+            f.intrinsics.fx,
+            f.intrinsics.fy,
+            f.intrinsics.cx,
+            f.intrinsics.cy,
+        ],
+        world_from_camera: m,
+    }
+}
+
+/// Physics: median time of one 0.18 m action with the oracle's directions (re-grasping after each episode).
+fn physics_ms(category: Category, actions: usize) -> Result<f64> {
+    let args = crate::ObjectArgs {
+        category: Some(category),
+        object: None,
+        seed: 1,
+        instance: None,
+        dataset_seed: 0,
+    };
+    let scene = args.scene(Task::Exploration)?;
+    let mut env = SimEnv::new(
+        scene.clone(),
+        Camera::reference(96, 128),
+        create_renderer(RendererKind::Cpu)?,
+    )?;
+    let mut oracle = OraclePolicy::default();
+    let mut times = Vec::with_capacity(actions);
+    while times.len() < actions {
+        env.reset(scene.clone())?;
+        let f = env.render()?;
+        let obs = Observation {
+            frame: &f,
+            reference: &f,
+        };
+        let px = oracle.position(&obs, &env)?;
+        if let Pick::NoMovableLink = env.step_position(&f, px.0, px.1)? {
+            anyhow::bail!("oracle found no movable link on the benchmark {category}");
+        }
+        for _ in 0..10 {
+            let Decision::Move { direction, .. } = oracle.direction(&obs, &env, &[])? else {
+                break;
+            };
+            let t = Instant::now();
+            env.step_direction(direction)?;
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    Ok(median(times))
+}
+
+/// Largest generated object by triangle count among 20 instances of each category.
+fn largest_object() -> (Category, u32, usize) {
+    let mut best = (Category::StorageFurniture, 0, 0);
+    for &c in Category::ALL {
+        for i in 0..20 {
+            if let Ok(m) = umpnet_sim::objects::generate(c, i, 0).model() {
+                let n: usize = m
+                    .links
+                    .iter()
+                    .flat_map(|l| &l.visuals)
+                    .map(|v| v.mesh_in_link.triangles.len())
+                    .sum();
+                if n > best.2 {
+                    best = (c, i, n);
+                }
+            }
+        }
+    }
+    best
+}
+
+fn observation_ms(
+    category: Category,
+    instance: u32,
+    res: (u32, u32),
+    kind: RendererKind,
+    frames: usize,
+) -> Result<(f64, String)> {
+    let args = crate::ObjectArgs {
+        category: Some(category),
+        object: None,
+        seed: 1,
+        instance: Some(instance),
+        dataset_seed: 0,
+    };
+    let scene = args.scene(Task::Exploration)?;
+    let mut env = SimEnv::new(
+        scene,
+        Camera::reference(res.0, res.1),
+        create_renderer(kind)?,
+    )?;
+    let _ = env.render()?; // warm-up
+    let mut times = Vec::with_capacity(frames);
+    for _ in 0..frames {
+        let t = Instant::now();
+        let f = env.render()?;
+        let obs = build_observation(&camera_frame(&f))?;
+        std::hint::black_box(obs);
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok((median(times), env.renderer_name()))
+}
+
+pub fn run(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
+    let mut rows = Vec::new();
+    for c in [
+        Category::StorageFurniture,
+        Category::Refrigerator,
+        Category::Microwave,
+    ] {
+        let ms = physics_ms(c, a.actions)?;
+        rows.push(serde_json::json!({"figure": "physics per 0.18 m action", "object": c.name(), "median_ms": ms, "target_ms": 1.5}));
+    }
+    let (big, big_i, tris) = largest_object();
+    let cab_i = umpnet_sim::objects::nth_instance(
+        Category::StorageFurniture,
+        umpnet_sim::objects::InstanceSplit::Test,
+        0,
+    );
+    let gpu = umpnet_sim::render::gpu_available();
+    for (kind, frames) in [
+        (RendererKind::Wgpu, a.frames),
+        (RendererKind::Cpu, a.frames.div_ceil(4)),
+    ] {
+        if kind == RendererKind::Wgpu && !gpu {
+            eprintln!("notice: no wgpu adapter; skipping wgpu figures");
+            continue;
+        }
+        for res in [(480, 640), (120, 160)] {
+            for (c, i, label) in [
+                (Category::StorageFurniture, cab_i, "cabinet".to_string()),
+                (big, big_i, format!("largest ({big}, {tris} triangles)")),
+            ] {
+                let (ms, name) = observation_ms(c, i, res, kind, frames)?;
+                let target = match (kind, res.0) {
+                    (RendererKind::Wgpu, 480) => Some(15.0),
+                    (RendererKind::Wgpu, _) => Some(3.0),
+                    _ => None,
+                };
+                rows.push(serde_json::json!({"figure": format!("observation {}x{}", res.0, res.1), "object": label, "renderer": name, "median_ms": ms, "target_ms": target}));
+            }
+        }
+    }
+    if ctx.json {
+        println!("{}", serde_json::Value::Array(rows));
+    } else {
+        println!(
+            "{:<30} {:<36} {:<34} {:>10} {:>8}",
+            "figure", "object", "renderer", "median ms", "target"
+        );
+        for r in &rows {
+            let target = r["target_ms"]
+                .as_f64()
+                .map(|t| format!("{t:.1}"))
+                .unwrap_or_else(|| "-".into());
+            println!(
+                "{:<30} {:<36} {:<34} {:>10.3} {:>8}",
+                r["figure"].as_str().unwrap_or(""),
+                r["object"].as_str().unwrap_or(""),
+                r["renderer"].as_str().unwrap_or("rapier3d"),
+                r["median_ms"].as_f64().unwrap_or(f64::NAN),
+                target
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,232 @@
+use crate::{Ctx, images, usage};
+use anyhow::{Context, Result};
+use image::RgbImage;
+use std::path::PathBuf;
+use umpnet_eval::Policy;
+use umpnet_eval::episode::{Step, run_episode};
+use umpnet_sim::camera::Camera;
+use umpnet_sim::math::Vec3;
+use umpnet_sim::render::{Frame, RendererKind, create_renderer};
+use umpnet_sim::scene::{GOAL_STEPS, Task};
+
+#[derive(clap::Args)]
+pub struct EpisodeArgs {
+    #[command(flatten)]
+    pub object: crate::ObjectArgs,
+    /// Number of direction actions (default: the category's budget; 15 for goals).
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// random or oracle.
+    #[arg(long, default_value = "oracle")]
+    pub policy: String,
+    #[arg(long, default_value = "240x320", value_parser = crate::parse_resolution)]
+    pub resolution: (u32, u32),
+    #[arg(long, default_value = "auto")]
+    pub renderer: RendererKind,
+    /// Write one PNG per step, a contact sheet and an animated GIF here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+pub fn make_policy(name: &str) -> Result<Box<dyn Policy>> {
+    umpnet_eval::scripted_policy(name).ok_or_else(|| {
+        usage(format!(
+            "--policy {name}: unknown policy; expected random or oracle"
+        ))
+    })
+}
+
+pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
+    let mut policy = make_policy(&a.policy)?;
+    let scene = a.object.scene(task)?;
+    let budget = a.steps.unwrap_or(match (task, scene.category) {
+        (Task::Goal, _) => GOAL_STEPS,
+        (Task::Exploration, Some(c)) => c.step_budget(),
+        (Task::Exploration, None) => 10,
+    });
+    let camera = Camera::reference(a.resolution.0, a.resolution.1);
+    let mut pictures: Vec<RgbImage> = Vec::new();
+    let mut hook = |t: usize, f: &Frame, step: Option<&Step>, pixel: (u32, u32)| {
+        pictures.push(step_picture(f, t, step, pixel));
+    };
+    let ep = run_episode(
+        &scene,
+        &camera,
+        create_renderer(a.renderer)?,
+        policy.as_mut(),
+        budget,
+        a.object.seed,
+        if a.out.is_some() {
+            Some(&mut hook)
+        } else {
+            None
+        },
+    )?;
+    if let Some(out) = &a.out {
+        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        for (t, p) in pictures.iter().enumerate() {
+            images::save(p, &out.join(format!("step_{t:02}.png")))?;
+        }
+        images::save(&contact_sheet(&pictures), &out.join("episode.png"))?;
+        write_gif(&pictures, &out.join("episode.gif"))?;
+    }
+    if ctx.json {
+        println!("{}", serde_json::to_string(&ep)?);
+        return Ok(());
+    }
+    let what = scene
+        .category
+        .map(|c| c.name().to_owned())
+        .unwrap_or_else(|| "object".into());
+    println!(
+        "{} episode, {what}, policy {}, scene seed {}",
+        if task == Task::Goal {
+            "goal"
+        } else {
+            "exploration"
+        },
+        ep.policy,
+        a.object.seed
+    );
+    let joint_name = ep.joint.map(|j| {
+        format!(
+            "joint `{}`",
+            ep.steps
+                .first()
+                .map(|_| j)
+                .map(|j| j.to_string())
+                .unwrap_or_default()
+        )
+    });
+    println!(
+        "position: pixel (row {}, col {}) -> {}",
+        ep.pixel.0,
+        ep.pixel.1,
+        if ep.valid_position {
+            joint_name.unwrap_or_default()
+        } else {
+            "no valid link: episode ends".into()
+        }
+    );
+    println!(
+        "{:>4}  {:>24}  {:>9}  {:>9}  {:>4}",
+        "step", "direction (world)", "joint", "change", "AoT"
+    );
+    for (t, s) in ep.steps.iter().enumerate() {
+        let d = s.record.direction;
+        let l = &s.record.labels;
+        println!(
+            "{:>4}  ({:>6.3}, {:>6.3}, {:>6.3})  {:>9.3}  {:>+9.3}  {:>+4}",
+            t + 1,
+            d[0],
+            d[1],
+            d[2],
+            l.joint_after,
+            l.joint_after - l.joint_before,
+            l.aot
+        );
+    }
+    if ep.stopped_early {
+        println!("policy stopped after {} steps", ep.steps.len());
+    }
+    let m = &ep.metrics;
+    match task {
+        Task::Exploration => println!(
+            "novel-state ratio {:.3}  single action effect {:.3}  unique states {}",
+            m.novel_state_ratio,
+            m.single_action_effect,
+            m.unique_states.last().copied().unwrap_or(0.0)
+        ),
+        Task::Goal => println!(
+            "normalized distance {:.3}  success {}",
+            m.normalized_distance, m.success
+        ),
+    }
+    if let Some(out) = &a.out {
+        println!("pictures in {}", out.display());
+    }
+    Ok(())
+}
+
+fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> RgbImage {
+    let mut img = images::color_image(f);
+    let scale = f.width as f32 / 320.0;
+    let thick = (2.0 * scale).round().max(1.0) as i32;
+    images::draw_disc(
+        &mut img,
+        (pixel.1 as f32 + 0.5, pixel.0 as f32 + 0.5),
+        4.0 * scale.max(0.5),
+        [255, 40, 40],
+    );
+    if let Some(s) = step {
+        let from = f.point_in_world(pixel.0, pixel.1);
+        if let (Some(c), Some(_)) = (&s.candidates, from) {
+            let maxd = c.distance.iter().copied().fold(1e-6f32, f32::max);
+            for (k, d) in c.directions.iter().enumerate() {
+                let color = match c.aot.get(k) {
+                    Some(1) => [40, 200, 60],
+                    Some(-1) => [230, 60, 200],
+                    _ => [160, 160, 160],
+                };
+                images::draw_arrow(
+                    &mut img,
+                    f,
+                    from.unwrap_or(Vec3::ZERO),
+                    Vec3::from(*d),
+                    0.2 * c.distance[k] / maxd,
+                    color,
+                    1,
+                );
+            }
+        }
+        if let Some(p) = from {
+            images::draw_arrow(
+                &mut img,
+                f,
+                p,
+                Vec3::from(s.record.direction),
+                0.25,
+                [255, 220, 0],
+                thick + 1,
+            );
+        }
+    }
+    let _ = t;
+    images::enlarge(&img, 320)
+}
+
+fn contact_sheet(pics: &[RgbImage]) -> RgbImage {
+    let Some(first) = pics.first() else {
+        return RgbImage::new(1, 1);
+    };
+    let cols = (pics.len() as f32).sqrt().ceil() as u32;
+    let rows = (pics.len() as u32).div_ceil(cols);
+    let (w, h) = (first.width(), first.height());
+    let mut sheet = RgbImage::from_pixel(cols * w, rows * h, image::Rgb([255, 255, 255]));
+    for (i, p) in pics.iter().enumerate() {
+        image::imageops::overlay(
+            &mut sheet,
+            p,
+            ((i as u32 % cols) * w) as i64,
+            ((i as u32 / cols) * h) as i64,
+        );
+    }
+    sheet
+}
+
+fn write_gif(pics: &[RgbImage], path: &std::path::Path) -> Result<()> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("writing {}", path.display()))?;
+    let mut enc = image::codecs::gif::GifEncoder::new_with_speed(file, 10);
+    enc.set_repeat(image::codecs::gif::Repeat::Infinite)?;
+    for p in pics {
+        let rgba = image::DynamicImage::ImageRgb8(p.clone()).to_rgba8();
+        enc.encode_frame(image::Frame::from_parts(
+            rgba,
+            0,
+            0,
+            image::Delay::from_numer_denom_ms(600, 1),
+        ))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,215 @@
+//! The paper's benchmark: per category, K fixed scenes (pure functions of
+//! seed, task, category and index), every policy on the same scenes, episodes
+//! in parallel with results independent of the thread count.
+use crate::episode::{Episode, run_episode};
+use crate::policy::Policy;
+use crate::{EvalError, Result};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use std::sync::Arc;
+use umpnet_sim::camera::Camera;
+use umpnet_sim::env::SimEnv;
+use umpnet_sim::objects::{Category, InstanceSplit, nth_instance};
+use umpnet_sim::render::{CpuRenderer, RendererKind, Segment, create_renderer};
+use umpnet_sim::scene::{ObjectSource, Scene, Task, sample_scene};
+
+/// Test instances drawn per category (the paper has about ten per category).
+pub const INSTANCES_PER_CATEGORY: u32 = 10;
+
+pub type PolicyFactory = Arc<dyn Fn() -> Result<Box<dyn Policy>> + Send + Sync>;
+
+fn mix(parts: &[u64]) -> u64 {
+    // splitmix64 over the parts: stable across platforms and versions.
+    let mut h = 0x243F_6A88_85A3_08D3u64;
+    for &p in parts {
+        h ^= p
+            .wrapping_add(0x9E37_79B9_7F4A_7C15)
+            .wrapping_add(h << 6)
+            .wrapping_add(h >> 2);
+        h = (h ^ (h >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        h = (h ^ (h >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        h ^= h >> 31;
+    }
+    h
+}
+
+pub fn scene_seed(seed: u64, task: Task, category: Category, k: u32) -> u64 {
+    let c = Category::ALL
+        .iter()
+        .position(|x| *x == category)
+        .unwrap_or(0) as u64;
+    mix(&[seed, task as u64, c, k as u64])
+}
+
+/// Scene `k` of a category's benchmark: a test instance, placed and posed by
+/// the protocol; goal scenes set their goal on a joint the camera sees.
+pub fn benchmark_scene(
+    seed: u64,
+    task: Task,
+    category: Category,
+    k: u32,
+    dataset_seed: u64,
+) -> Result<Scene> {
+    let index = nth_instance(category, InstanceSplit::Test, k % INSTANCES_PER_CATEGORY);
+    let object = ObjectSource::Generated {
+        category,
+        index,
+        dataset_seed,
+    };
+    sample_visible_scene(
+        &mut ChaCha8Rng::seed_from_u64(scene_seed(seed, task, category, k)),
+        task,
+        Some(category),
+        object,
+    )
+}
+
+/// Samples a scene whose (goal) joint's links are visible in a small CPU render.
+pub fn sample_visible_scene(
+    rng: &mut ChaCha8Rng,
+    task: Task,
+    category: Option<Category>,
+    object: ObjectSource,
+) -> Result<Scene> {
+    let model = object.load()?;
+    let mut last = None;
+    for _ in 0..20 {
+        let scene = sample_scene(rng, task, category, object.clone(), &model, None)?;
+        let mut env = SimEnv::new(
+            scene.clone(),
+            Camera::reference(96, 128),
+            Box::new(CpuRenderer::default()),
+        )?;
+        let frame = env.render()?;
+        let mut pixels = vec![0usize; model.joints.len()];
+        for &s in &frame.segmentation {
+            if let Segment::Link { link, .. } = Segment::decode(s)
+                && let Some(j) = env.joint_moving_link(link)
+            {
+                pixels[j] += 1;
+            }
+        }
+        let visible = |j: usize| pixels[j] >= 12;
+        let ok = match &scene.goal {
+            Some(g) => visible(g.joint),
+            None => (0..pixels.len()).any(visible),
+        };
+        if ok {
+            return Ok(scene);
+        }
+        last = Some(scene);
+    }
+    last.ok_or_else(|| EvalError::Episode("no scene sampled".into()))
+}
+
+#[derive(Clone, Debug)]
+pub struct BenchConfig {
+    pub task: Task,
+    pub categories: Vec<Category>,
+    pub episodes_per_category: u32,
+    pub seed: u64,
+    pub dataset_seed: u64,
+    pub camera: Camera,
+    pub renderer: RendererKind,
+    /// Step budget override (default: the category's).
+    pub steps: Option<usize>,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct EpisodeOutcome {
+    pub category: Category,
+    pub index: u32,
+    pub policy: String,
+    pub episode: Option<Episode>,
+    /// Why the episode failed (with its scene), if it did.
+    pub error: Option<String>,
+}
+
+/// Runs every policy on every scene; `progress` is called after each scene.
+pub fn run_benchmark(
+    cfg: &BenchConfig,
+    policies: &[(String, PolicyFactory)],
+    progress: &(dyn Fn() + Sync),
+) -> Vec<EpisodeOutcome> {
+    let jobs: Vec<(Category, u32)> = cfg
+        .categories
+        .iter()
+        .flat_map(|&c| (0..cfg.episodes_per_category).map(move |k| (c, k)))
+        .collect();
+    let results: Vec<Vec<EpisodeOutcome>> = jobs
+        .par_iter()
+        .map(|&(category, k)| {
+            let out = run_scene(cfg, policies, category, k);
+            progress();
+            out
+        })
+        .collect();
+    results.into_iter().flatten().collect()
+}
+
+fn run_scene(
+    cfg: &BenchConfig,
+    policies: &[(String, PolicyFactory)],
+    category: Category,
+    k: u32,
+) -> Vec<EpisodeOutcome> {
+    let scene = benchmark_scene(cfg.seed, cfg.task, category, k, cfg.dataset_seed);
+    let budget = cfg.steps.unwrap_or(match cfg.task {
+        Task::Exploration => category.step_budget(),
+        Task::Goal => umpnet_sim::scene::GOAL_STEPS,
+    });
+    policies
+        .iter()
+        .map(|(name, make)| {
+            let result = scene
+                .as_ref()
+                .map_err(|e| EvalError::Episode(e.to_string()))
+                .and_then(|scene| {
+                    let mut policy = make()?;
+                    let renderer = create_renderer(cfg.renderer)?;
+                    let seed = scene_seed(cfg.seed ^ 0x5EED, cfg.task, category, k);
+                    run_episode(
+                        scene,
+                        &cfg.camera,
+                        renderer,
+                        policy.as_mut(),
+                        budget,
+                        seed,
+                        None,
+                    )
+                    .map_err(|e| EvalError::Episode(format!("{e} (scene: {})", scene.to_json())))
+                });
+            match result {
+                Ok(ep) => EpisodeOutcome {
+                    category,
+                    index: k,
+                    policy: name.clone(),
+                    episode: Some(ep),
+                    error: None,
+                },
+                Err(e) => EpisodeOutcome {
+                    category,
+                    index: k,
+                    policy: name.clone(),
+                    episode: None,
+                    error: Some(e.to_string()),
+                },
+            }
+        })
+        .collect()
+}
+
+/// Mean and half-width of the 95% interval (normal approximation).
+pub fn mean_ci(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    if n == 0.0 {
+        return (f64::NAN, f64::NAN);
+    }
+    let mean = values.iter().sum::<f64>() / n;
+    if n < 2.0 {
+        return (mean, 0.0);
+    }
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, 1.96 * (var / n).sqrt())
+}

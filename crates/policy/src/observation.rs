@@ -1,0 +1,206 @@
+//! The 10-channel observation built from what a real RGB-D camera gives:
+//! colour, depth, intrinsics and the camera pose. Channels: world xyz (3),
+//! rgb in [0, 1] (3), surface normal facing the camera (3), depth in metres (1).
+use crate::error::{PolicyError, Result};
+use nalgebra::{Matrix4, Point3, Vector3};
+use ndarray::Array3;
+
+pub const CHANNELS: usize = 10;
+
+/// A camera frame as plain data; images row-major.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraFrame<'a> {
+    pub width: usize,
+    pub height: usize,
+    /// 3 bytes per pixel.
+    pub rgb: &'a [u8],
+    /// Metres along the optical axis; 0 (or non-finite) = no measurement.
+    pub depth: &'a [f32],
+    /// fx, fy, cx, cy (OpenCV convention, pixel centres at +0.5).
+    pub intrinsics: [f32; 4],
+    /// Camera pose, row-major 4x4, camera frame x right, y down, z forward.
+    pub world_from_camera: [[f32; 4]; 4],
+}
+
+impl CameraFrame<'_> {
+    pub fn validate(&self) -> Result<()> {
+        let n = self.width * self.height;
+        if n == 0 {
+            return Err(PolicyError::Input("image has zero pixels".into()));
+        }
+        if self.rgb.len() != n * 3 {
+            return Err(PolicyError::Input(format!(
+                "rgb has {} bytes, expected {} ({}x{}x3)",
+                self.rgb.len(),
+                n * 3,
+                self.height,
+                self.width
+            )));
+        }
+        if self.depth.len() != n {
+            return Err(PolicyError::Input(format!(
+                "depth has {} values, expected {} ({}x{})",
+                self.depth.len(),
+                n,
+                self.height,
+                self.width
+            )));
+        }
+        let [fx, fy, ..] = self.intrinsics;
+        if !(fx > 0.0 && fy > 0.0 && self.intrinsics.iter().all(|v| v.is_finite())) {
+            return Err(PolicyError::Input(format!(
+                "intrinsics {:?} must be finite with fx, fy > 0",
+                self.intrinsics
+            )));
+        }
+        if !self
+            .world_from_camera
+            .iter()
+            .flatten()
+            .all(|v| v.is_finite())
+        {
+            return Err(PolicyError::Input(
+                "camera pose has non-finite entries".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    fn pose(&self) -> Matrix4<f32> {
+        let m = &self.world_from_camera;
+        Matrix4::from_fn(|r, c| m[r][c])
+    }
+
+    fn valid_depth(&self, i: usize) -> Option<f32> {
+        let d = self.depth[i];
+        (d.is_finite() && d > 0.0).then_some(d)
+    }
+
+    /// Pixel centre back-projected to the world frame.
+    pub fn point_in_world(&self, row: usize, col: usize) -> Option<Vector3<f32>> {
+        let d = self.valid_depth(row * self.width + col)?;
+        let [fx, fy, cx, cy] = self.intrinsics;
+        let p = Point3::new(
+            (col as f32 + 0.5 - cx) / fx * d,
+            (row as f32 + 0.5 - cy) / fy * d,
+            d,
+        );
+        Some(self.pose().transform_point(&p).coords)
+    }
+
+    pub fn camera_position(&self) -> Vector3<f32> {
+        let m = &self.world_from_camera;
+        Vector3::new(m[0][3], m[1][3], m[2][3])
+    }
+}
+
+/// Builds the H x W x 10 observation. Normals come from the depth image: the
+/// cross product of the horizontal and vertical differences, each taken
+/// toward the neighbour closer in depth so that edges do not bleed.
+pub fn build_observation(frame: &CameraFrame) -> Result<Array3<f32>> {
+    frame.validate()?;
+    let (h, w) = (frame.height, frame.width);
+    let mut points = vec![None; h * w];
+    for r in 0..h {
+        for c in 0..w {
+            points[r * w + c] = frame.point_in_world(r, c);
+        }
+    }
+    let eye = frame.camera_position();
+    let mut obs = Array3::<f32>::zeros((h, w, CHANNELS));
+    for r in 0..h {
+        for c in 0..w {
+            let i = r * w + c;
+            for k in 0..3 {
+                obs[[r, c, 3 + k]] = frame.rgb[i * 3 + k] as f32 / 255.0;
+            }
+            let Some(p) = points[i] else { continue };
+            obs[[r, c, 9]] = frame.depth[i];
+            for k in 0..3 {
+                obs[[r, c, k]] = p[k];
+            }
+            let d0 = frame.depth[i];
+            let pick = |a: Option<usize>, b: Option<usize>| -> Option<Vector3<f32>> {
+                let cand = |j: Option<usize>| {
+                    j.and_then(|j| points[j].map(|q| ((frame.depth[j] - d0).abs(), q, j)))
+                };
+                let (ca, cb) = (cand(a), cand(b));
+                match (ca, cb) {
+                    (Some(x), Some(y)) => {
+                        let (_, q, j) = if x.0 <= y.0 { x } else { y };
+                        Some(if Some(j) == a { p - q } else { q - p })
+                    }
+                    (Some((_, q, _)), None) => Some(p - q),
+                    (None, Some((_, q, _))) => Some(q - p),
+                    (None, None) => None,
+                }
+            };
+            let left = (c > 0).then(|| i - 1);
+            let right = (c + 1 < w).then(|| i + 1);
+            let up = (r > 0).then(|| i - w);
+            let down = (r + 1 < h).then(|| i + w);
+            if let (Some(dx), Some(dy)) = (pick(left, right), pick(up, down)) {
+                let mut n = dx.cross(&dy);
+                let len = n.norm();
+                if len > 0.0 {
+                    n /= len;
+                    if n.dot(&(eye - p)) < 0.0 {
+                        n = -n;
+                    }
+                    for k in 0..3 {
+                        obs[[r, c, 6 + k]] = n[k];
+                    }
+                }
+            }
+        }
+    }
+    Ok(obs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plane_facing_camera_gives_its_normal() {
+        // Camera at the origin looking down +z at a wall 2 m away.
+        let (w, h) = (8, 6);
+        let rgb = vec![128u8; w * h * 3];
+        let depth = vec![2.0f32; w * h];
+        let frame = CameraFrame {
+            width: w,
+            height: h,
+            rgb: &rgb,
+            depth: &depth,
+            intrinsics: [10.0, 10.0, 4.0, 3.0],
+            world_from_camera: [
+                [1.0, 0.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0, 0.0],
+                [0.0, 0.0, 1.0, 0.0],
+                [0.0, 0.0, 0.0, 1.0],
+            ],
+        };
+        let obs = build_observation(&frame).unwrap();
+        assert_eq!(obs.shape(), &[6, 8, 10]);
+        for r in 0..h {
+            for c in 0..w {
+                assert!(
+                    (obs[[r, c, 8]] + 1.0).abs() < 1e-5,
+                    "normal should face the camera (-z)"
+                );
+                assert!((obs[[r, c, 2]] - 2.0).abs() < 1e-5 && (obs[[r, c, 9]] - 2.0).abs() < 1e-6);
+                assert!((obs[[r, c, 3]] - 128.0 / 255.0).abs() < 1e-6);
+            }
+        }
+        let bad = CameraFrame {
+            rgb: &rgb[..10],
+            ..frame
+        };
+        assert!(
+            build_observation(&bad)
+                .unwrap_err()
+                .to_string()
+                .contains("rgb has 10 bytes")
+        );
+    }
+}

@@ -1,0 +1,275 @@
+//! Physics of the action primitive on generated objects of every category.
+use rand::{Rng, SeedableRng};
+use std::sync::Arc;
+use umpnet_sim::env::{DELTA, labels};
+use umpnet_sim::math::{Pose3, Quat, Vec3};
+use umpnet_sim::objects::{Category, generate};
+use umpnet_sim::physics::{Articulation, PhysicsConfig};
+use umpnet_sim::urdf::{JointKind, ObjectModel};
+
+fn model(c: Category, i: u32) -> Arc<ObjectModel> {
+    Arc::new(generate(c, i, 0).model().unwrap())
+}
+
+fn articulation(m: &Arc<ObjectModel>, yaw: f32) -> Articulation {
+    Articulation::new(
+        m.clone(),
+        Pose3::from_parts(Vec3::new(0.0, -0.5, 0.0), Quat::from_rotation_z(yaw)),
+        PhysicsConfig::default(),
+    )
+}
+
+/// A grasp point on the joint's child link: the vertex farthest from a revolute
+/// axis (pulled slightly inward), or the link's centre for a prismatic joint.
+fn grasp_point(art: &Articulation, m: &ObjectModel, j: usize) -> (Vec3, f32) {
+    let link = m.joints[j].child;
+    let pose = art.world_from_link(link);
+    let pts: Vec<Vec3> = m.links[link]
+        .visuals
+        .iter()
+        .flat_map(|v| {
+            v.mesh_in_link
+                .positions
+                .iter()
+                .map(|p| pose.transform_point(*p))
+        })
+        .collect();
+    let (axis, origin) = art.joint_axis_in_world(j);
+    if m.joints[j].kind == JointKind::Prismatic {
+        let c = pts.iter().copied().sum::<Vec3>() / pts.len() as f32;
+        return (c, 0.0);
+    }
+    let radial = |p: Vec3| {
+        let r = p - origin;
+        r - axis * r.dot(axis)
+    };
+    let far = pts
+        .iter()
+        .copied()
+        .max_by(|a, b| radial(*a).length().total_cmp(&radial(*b).length()))
+        .unwrap();
+    let p = far - radial(far) * 0.1;
+    (p, radial(p).length())
+}
+
+#[test]
+fn every_joint_of_every_category_opens_step_by_step_and_stops_at_its_limit() {
+    let mut checked = 0;
+    for &c in Category::ALL {
+        for i in 0..3 {
+            let m = model(c, i);
+            for (j, jm) in m.movable_joints() {
+                let mut art = articulation(&m, 0.3);
+                let mut q: Vec<f32> = art.joint_positions();
+                q[j] = jm.lower;
+                art.set_joint_positions(&q).unwrap();
+                let (p, radius) = grasp_point(&art, &m, j);
+                art.attach(p, jm.child).unwrap();
+                let range = jm.upper - jm.lower;
+                let expected = if jm.kind == JointKind::Prismatic {
+                    0.18
+                } else {
+                    0.18 / radius
+                };
+                let mut reached = false;
+                for step in 0..60 {
+                    let (axis, origin) = art.joint_axis_in_world(j);
+                    let dir = if jm.kind == JointKind::Prismatic {
+                        axis
+                    } else {
+                        axis.cross(art.gripper_position().unwrap() - origin)
+                            .normalize()
+                    };
+                    let o = art.move_gripper(dir, j).unwrap();
+                    assert!(
+                        !o.suction_lost,
+                        "{c}#{i} joint {j}: suction lost on a tangent pull"
+                    );
+                    let gained = o.joint_after - o.joint_before;
+                    let left = jm.upper - o.joint_before;
+                    if left > 1.2 * expected {
+                        assert!(
+                            gained > 0.75 * expected && gained < 1.1 * expected,
+                            "{c}#{i} joint {j} step {step}: gained {gained:.3}, expected about {expected:.3}"
+                        );
+                    }
+                    if (o.joint_after - jm.upper).abs() < 0.01 * range.max(0.1) {
+                        // At the limit: pulling again changes nothing.
+                        let again = art.move_gripper(dir, j).unwrap();
+                        assert!(
+                            (again.joint_after - again.joint_before).abs() < 0.01,
+                            "{c}#{i} joint {j}: moved past its limit"
+                        );
+                        reached = true;
+                        break;
+                    }
+                }
+                assert!(
+                    reached,
+                    "{c}#{i} joint {j}: never reached its upper limit {}",
+                    jm.upper
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked >= 66, "checked only {checked} joints");
+}
+
+#[test]
+fn door_opens_by_point_15_to_point_2_rad_with_a_one_metre_lever() {
+    // A door of about 0.9-1 m pulled at its far edge: 0.18 m / r per action.
+    let m = model(Category::Door, 0);
+    let (j, jm) = m.movable_joints().next().unwrap();
+    let mut art = articulation(&m, 0.0);
+    let (p, r) = grasp_point(&art, &m, j);
+    art.attach(p, jm.child).unwrap();
+    let (axis, origin) = art.joint_axis_in_world(j);
+    let o = art
+        .move_gripper(
+            axis.cross(art.gripper_position().unwrap() - origin)
+                .normalize(),
+            j,
+        )
+        .unwrap();
+    let gained = o.joint_after - o.joint_before;
+    assert!((0.6..1.0).contains(&r), "lever {r}");
+    assert!(
+        (0.15..0.3).contains(&gained),
+        "gained {gained} rad with lever {r} m"
+    );
+}
+
+#[test]
+fn a_thousand_random_actions_never_explode() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut actions = 0;
+    while actions < 1000 {
+        let c = Category::ALL[rng.random_range(0..Category::ALL.len())];
+        let m = model(c, rng.random_range(0..5));
+        let mut art = articulation(&m, rng.random_range(-0.7..0.7));
+        let movable: Vec<usize> = m.movable_joints().map(|(j, _)| j).collect();
+        let j = movable[rng.random_range(0..movable.len())];
+        let (p, _) = grasp_point(&art, &m, j);
+        art.attach(p, m.joints[j].child).unwrap();
+        for _ in 0..20 {
+            let d = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            )
+            .normalize();
+            let o = art.move_gripper(d, j).unwrap();
+            actions += 1;
+            for (k, jm) in m.joints.iter().enumerate() {
+                let v = art.joint_position(k);
+                assert!(v.is_finite(), "{c}: joint {k} became {v}");
+                if jm.kind.is_movable() && jm.lower.is_finite() {
+                    assert!(
+                        v >= jm.lower - 0.05 && v <= jm.upper + 0.05,
+                        "{c}: joint {k} = {v} outside [{}, {}]",
+                        jm.lower,
+                        jm.upper
+                    );
+                }
+                assert!(
+                    art.joint_velocity(k).abs() < 1e-3,
+                    "velocities are zeroed after each action"
+                );
+            }
+            assert!(
+                o.gripper_moved <= 0.25,
+                "{c}: gripper moved {} m in one 0.18 m action",
+                o.gripper_moved
+            );
+        }
+    }
+}
+
+#[test]
+fn reset_restores_joint_values_and_the_same_actions_replay_bit_identically() {
+    let m = model(Category::StorageFurniture, 3);
+    let run = || {
+        let mut art = articulation(&m, 0.2);
+        let q: Vec<f32> = m
+            .joints
+            .iter()
+            .map(|j| {
+                if j.kind.is_movable() {
+                    (j.lower + j.upper) * 0.37
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        art.set_joint_positions(&q).unwrap();
+        for (k, v) in art.joint_positions().iter().enumerate() {
+            assert!(
+                (v - q[k]).abs() < 1e-5,
+                "reset: joint {k} is {v}, expected {}",
+                q[k]
+            );
+        }
+        let (j, jm) = m.movable_joints().next().unwrap();
+        let (p, _) = grasp_point(&art, &m, j);
+        art.attach(p, jm.child).unwrap();
+        let mut trace = Vec::new();
+        for k in 0..8 {
+            let a = k as f32 * 0.7;
+            let o = art
+                .move_gripper(Vec3::new(a.cos(), -0.8, a.sin()).normalize(), j)
+                .unwrap();
+            trace.push(o.joint_after.to_bits());
+        }
+        trace.extend(art.joint_positions().iter().map(|v| v.to_bits()));
+        trace
+    };
+    assert_eq!(run(), run());
+}
+
+#[test]
+fn scripted_back_and_forth_gives_the_defined_aot_labels() {
+    // Drawer out, out, in, in: +1, +1, -1, -1 (relative to the grasp state).
+    // A slide long enough for two effective pulls (> 2 x 0.15 m plus margin).
+    let m = Category::ALL
+        .iter()
+        .flat_map(|&c| (0..10).map(move |i| model(c, i)))
+        .find(|m| {
+            m.movable_joints()
+                .any(|(_, jm)| jm.kind == JointKind::Prismatic && jm.upper - jm.lower > 0.4)
+        })
+        .expect("some generated object has a slide longer than 0.4 m");
+    let (j, jm) = m
+        .movable_joints()
+        .find(|(_, jm)| jm.kind == JointKind::Prismatic && jm.upper - jm.lower > 0.4)
+        .unwrap();
+    let mut art = articulation(&m, 0.0);
+    let (p, _) = grasp_point(&art, &m, j);
+    art.attach(p, jm.child).unwrap();
+    let j0 = art.joint_position(j);
+    let (axis, _) = art.joint_axis_in_world(j);
+    let mut aots = Vec::new();
+    for sign in [1.0, 1.0, -1.0, -1.0] {
+        let o = art.move_gripper(axis * sign, j).unwrap();
+        let l = labels(
+            o.joint_before,
+            o.joint_after,
+            j0,
+            jm.lower,
+            jm.upper,
+            o.suction_lost,
+        );
+        assert!((l.r_dist - (o.joint_after - o.joint_before).abs()).abs() < 1e-6);
+        aots.push(if l.r_dist > DELTA {
+            l.aot
+        } else {
+            2 * sign as i8
+        });
+    }
+    assert_eq!(
+        aots,
+        vec![1, 1, -1, -1],
+        "drawer range {}",
+        jm.upper - jm.lower
+    );
+}
