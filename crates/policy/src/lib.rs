@@ -6,3 +6,7 @@ pub mod observation;
 
 pub use error::{PolicyError, Result};
 pub use observation::{CHANNELS, CameraFrame, build_observation};
+pub mod package;
+pub mod runtime;
+
+pub use package::{Branches, DirectionScores, ModelPackage, ModelMeta};

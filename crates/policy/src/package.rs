@@ -1,0 +1,287 @@
+//! A model package: three ONNX networks and `model.json` (contract in
+//! docs/model-package.md), validated on load.
+use crate::error::{PolicyError, Result};
+use crate::observation::CHANNELS;
+use ndarray::{Array1, Array2, Array3, ArrayView2, ArrayView4, Axis};
+use ort::session::Session;
+use ort::value::TensorRef;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+pub const FORMAT_VERSION: u32 = 1;
+
+#[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
+pub struct InputSpec {
+    pub height: usize,
+    pub width: usize,
+    pub channels: usize,
+}
+
+#[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
+pub struct Files {
+    pub position: String,
+    pub direction_encoder: String,
+    pub direction_decoder: String,
+}
+
+/// `model.json`.
+#[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
+pub struct ModelMeta {
+    pub format: String,
+    pub version: u32,
+    #[serde(default = "default_variant")]
+    pub variant: String,
+    pub input: InputSpec,
+    pub embedding: usize,
+    pub branches: Vec<String>,
+    pub uses_reference: bool,
+    pub files: Files,
+    #[serde(default)]
+    pub provenance: serde_json::Value,
+    #[serde(default)]
+    pub evaluation: serde_json::Value,
+}
+
+fn default_variant() -> String {
+    "umpnet".into()
+}
+
+/// Which decoder outputs the package has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Branches {
+    /// Dist and AoT (UMPNet, SingleStep).
+    DistAot,
+    /// AoT only (the AoTOnly baseline).
+    AotOnly,
+    /// One signed distance (the SignedDist baseline).
+    SignedDist,
+}
+
+/// Scores of candidate directions: distance >= 0 and AoT class probabilities (-1, 0, +1).
+#[derive(Clone, Debug)]
+pub struct DirectionScores {
+    pub distance: Array1<f32>,
+    pub aot_probs: Array2<f32>,
+}
+
+struct Sessions {
+    position: Session,
+    encoder: Session,
+    decoder: Session,
+}
+
+pub struct ModelPackage {
+    pub dir: PathBuf,
+    pub meta: ModelMeta,
+    pub branches: Branches,
+    /// Session sets, one per concurrent user.
+    pool: Vec<Mutex<Sessions>>,
+    decoder_outputs: Vec<String>,
+}
+
+fn ort_err(file: &Path, e: impl std::fmt::Display) -> PolicyError {
+    PolicyError::Runtime(format!("{}: {e}", file.display()))
+}
+
+fn pkg_err(path: &Path, what: impl Into<String>) -> PolicyError {
+    PolicyError::Package { path: path.to_path_buf(), what: what.into() }
+}
+
+/// Checks a session's tensor names and (static) shapes; -1 = any.
+fn check_io(file: &Path, session: &Session, inputs: &[(&str, Vec<i64>)], outputs: &[(&str, Vec<i64>)]) -> Result<()> {
+    for (kind, outlets, wanted) in [("input", session.inputs(), inputs), ("output", session.outputs(), outputs)] {
+        for (name, shape) in wanted {
+            let Some(o) = outlets.iter().find(|o| o.name() == *name) else {
+                let found: Vec<&str> = outlets.iter().map(|o| o.name()).collect();
+                return Err(pkg_err(file, format!("{kind} `{name}` missing; found {found:?}")));
+            };
+            let found: Vec<i64> = o.dtype().tensor_shape().map(|s| s.iter().copied().collect()).unwrap_or_default();
+            let ok = found.len() == shape.len() && found.iter().zip(shape).all(|(f, e)| *e < 0 || *f < 0 || f == e);
+            if !ok {
+                return Err(pkg_err(file, format!("{kind} `{name}`: expected shape {shape:?}, found {found:?}")));
+            }
+        }
+    }
+    Ok(())
+}
+
+impl ModelPackage {
+    /// Loads and validates a package with `sessions` concurrent session sets
+    /// and `threads` intra-op threads each.
+    pub fn load(dir: &Path, sessions: usize, threads: usize, ort_library: Option<&Path>) -> Result<Self> {
+        let meta_path = dir.join("model.json");
+        let text = std::fs::read_to_string(&meta_path).map_err(|e| pkg_err(&meta_path, format!("cannot read: {e}")))?;
+        let meta: ModelMeta = serde_json::from_str(&text).map_err(|e| pkg_err(&meta_path, format!("invalid: {e}")))?;
+        if meta.format != "umpnet-model" {
+            return Err(pkg_err(&meta_path, format!("`format` is `{}`, expected `umpnet-model`", meta.format)));
+        }
+        if meta.version != FORMAT_VERSION {
+            return Err(pkg_err(&meta_path, format!("`version` is {}, this runtime reads version {FORMAT_VERSION}", meta.version)));
+        }
+        if meta.input.channels != CHANNELS {
+            return Err(pkg_err(&meta_path, format!("`input.channels` is {}, expected {CHANNELS}", meta.input.channels)));
+        }
+        if meta.input.height == 0 || meta.input.width == 0 || meta.embedding == 0 {
+            return Err(pkg_err(&meta_path, "`input.height`, `input.width` and `embedding` must be positive"));
+        }
+        let has = |b: &str| meta.branches.iter().any(|x| x == b);
+        let (branches, decoder_outputs) = if has("dist") && has("aot") {
+            (Branches::DistAot, vec!["distance".to_string(), "aot_probs".to_string()])
+        } else if has("aot") {
+            (Branches::AotOnly, vec!["aot_probs".to_string()])
+        } else if has("signed_dist") {
+            (Branches::SignedDist, vec!["signed_distance".to_string()])
+        } else {
+            return Err(pkg_err(&meta_path, format!("`branches` {:?}: expected [dist, aot], [aot] or [signed_dist]", meta.branches)));
+        };
+        let env = crate::runtime::environment(ort_library)?;
+        let (h, w, e) = (meta.input.height as i64, meta.input.width as i64, meta.embedding as i64);
+        let c = CHANNELS as i64;
+        let mut pool = Vec::new();
+        for _ in 0..sessions.max(1) {
+            let open = |name: &str| -> Result<(PathBuf, Session)> {
+                let file = dir.join(name);
+                if !file.is_file() {
+                    return Err(pkg_err(&file, "missing (named in model.json `files`)"));
+                }
+                let s = Session::builder(env)
+                    .and_then(|b| b.with_intra_threads(threads.max(1)).map_err(Into::into))
+                    .and_then(|mut b| b.commit_from_file(&file))
+                    .map_err(|e| ort_err(&file, e))?;
+                Ok((file, s))
+            };
+            let (pf, position) = open(&meta.files.position)?;
+            check_io(&pf, &position, &[("observation", vec![-1, h, w, c])], &[("affordance", vec![-1, h, w])])?;
+            let (ef, encoder) = open(&meta.files.direction_encoder)?;
+            check_io(
+                &ef,
+                &encoder,
+                &[("observation", vec![-1, h, w, c]), ("reference", vec![-1, h, w, c]), ("pixel", vec![-1, 2])],
+                &[("dist_embedding", vec![-1, e]), ("aot_embedding", vec![-1, e])],
+            )?;
+            let (df, decoder) = open(&meta.files.direction_decoder)?;
+            let outs: Vec<(&str, Vec<i64>)> =
+                decoder_outputs.iter().map(|n| (n.as_str(), if n == "aot_probs" { vec![-1, 3] } else { vec![-1] })).collect();
+            check_io(&df, &decoder, &[("dist_embedding", vec![-1, e]), ("aot_embedding", vec![-1, e]), ("direction", vec![-1, 3])], &outs)?;
+            pool.push(Mutex::new(Sessions { position, encoder, decoder }));
+        }
+        Ok(Self { dir: dir.to_path_buf(), meta, branches, pool, decoder_outputs })
+    }
+
+    fn with_sessions<T>(&self, f: impl FnOnce(&mut Sessions) -> Result<T>) -> Result<T> {
+        for m in &self.pool {
+            if let Ok(mut s) = m.try_lock() {
+                return f(&mut s);
+            }
+        }
+        let mut s = self.pool[0].lock().map_err(|_| PolicyError::Runtime("session lock poisoned".into()))?;
+        f(&mut s)
+    }
+
+    fn check_obs(&self, what: &str, obs: &ArrayView4<f32>) -> Result<()> {
+        let i = &self.meta.input;
+        if obs.shape()[1..] != [i.height, i.width, CHANNELS] {
+            return Err(PolicyError::Input(format!(
+                "{what} has shape {:?}, the model takes [batch, {}, {}, {CHANNELS}]",
+                obs.shape(),
+                i.height,
+                i.width
+            )));
+        }
+        Ok(())
+    }
+
+    /// Affordance in [0, 1] per pixel: batch x H x W.
+    pub fn position(&self, observation: ArrayView4<f32>) -> Result<Array3<f32>> {
+        self.check_obs("observation", &observation)?;
+        self.with_sessions(|s| {
+            let file = self.dir.join(&self.meta.files.position);
+            let o = observation.as_standard_layout();
+            let input = TensorRef::from_array_view(o.view().into_dyn()).map_err(|e| ort_err(&file, e))?;
+            let out = s.position.run(ort::inputs!["observation" => input]).map_err(|e| ort_err(&file, e))?;
+            let a = out["affordance"].try_extract_array::<f32>().map_err(|e| ort_err(&file, e))?;
+            a.to_owned().into_dimensionality().map_err(|e| ort_err(&file, e))
+        })
+    }
+
+    /// Image embeddings at the grasp pixels: (dist, aot), each batch x E.
+    pub fn encode(&self, observation: ArrayView4<f32>, reference: ArrayView4<f32>, pixel: ArrayView2<i64>) -> Result<(Array2<f32>, Array2<f32>)> {
+        self.check_obs("observation", &observation)?;
+        self.check_obs("reference", &reference)?;
+        if pixel.shape() != [observation.shape()[0], 2] {
+            return Err(PolicyError::Input(format!("pixel has shape {:?}, expected [{}, 2]", pixel.shape(), observation.shape()[0])));
+        }
+        self.with_sessions(|s| {
+            let file = self.dir.join(&self.meta.files.direction_encoder);
+            let e = |e: ort::Error| ort_err(&file, e);
+            let o = observation.as_standard_layout();
+            let r = reference.as_standard_layout();
+            let p = pixel.as_standard_layout();
+            let out = s
+                .encoder
+                .run(ort::inputs![
+                    "observation" => TensorRef::from_array_view(o.view().into_dyn()).map_err(e)?,
+                    "reference" => TensorRef::from_array_view(r.view().into_dyn()).map_err(e)?,
+                    "pixel" => TensorRef::from_array_view(p.view().into_dyn()).map_err(e)?,
+                ])
+                .map_err(e)?;
+            let get = |n: &str| -> Result<Array2<f32>> {
+                out[n].try_extract_array::<f32>().map_err(e)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
+            };
+            Ok((get("dist_embedding")?, get("aot_embedding")?))
+        })
+    }
+
+    /// Scores candidates: rows of the embeddings pair with rows of `direction`.
+    pub fn decode(&self, dist_embedding: ArrayView2<f32>, aot_embedding: ArrayView2<f32>, direction: ArrayView2<f32>) -> Result<DirectionScores> {
+        let n = direction.shape()[0];
+        let e = self.meta.embedding;
+        if dist_embedding.shape() != [n, e] || aot_embedding.shape() != [n, e] || direction.shape() != [n, 3] {
+            return Err(PolicyError::Input(format!(
+                "decoder inputs: embeddings {:?}/{:?} and directions {:?}, expected [{n}, {e}] and [{n}, 3]",
+                dist_embedding.shape(),
+                aot_embedding.shape(),
+                direction.shape()
+            )));
+        }
+        self.with_sessions(|s| {
+            let file = self.dir.join(&self.meta.files.direction_decoder);
+            let er = |x: ort::Error| ort_err(&file, x);
+            let (a, b, c) = (dist_embedding.as_standard_layout(), aot_embedding.as_standard_layout(), direction.as_standard_layout());
+            let out = s
+                .decoder
+                .run(ort::inputs![
+                    "dist_embedding" => TensorRef::from_array_view(a.view().into_dyn()).map_err(er)?,
+                    "aot_embedding" => TensorRef::from_array_view(b.view().into_dyn()).map_err(er)?,
+                    "direction" => TensorRef::from_array_view(c.view().into_dyn()).map_err(er)?,
+                ])
+                .map_err(er)?;
+            let get1 = |k: &str| -> Result<Array1<f32>> {
+                out[k].try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
+            };
+            let get2 = |k: &str| -> Result<Array2<f32>> {
+                out[k].try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
+            };
+            let _ = &self.decoder_outputs;
+            Ok(match self.branches {
+                Branches::DistAot => DirectionScores { distance: get1("distance")?, aot_probs: get2("aot_probs")? },
+                Branches::AotOnly => {
+                    let p = get2("aot_probs")?;
+                    // No distance branch: rank by the probability of an effective move.
+                    let d = p.index_axis(Axis(1), 0).to_owned() + p.index_axis(Axis(1), 2);
+                    DirectionScores { distance: d, aot_probs: p }
+                }
+                Branches::SignedDist => {
+                    let sd = get1("signed_distance")?;
+                    // The sign is the arrow of time; |sd| below 0.15 (delta) means no effective change.
+                    let mut p = Array2::<f32>::zeros((sd.len(), 3));
+                    for (i, v) in sd.iter().enumerate() {
+                        let k = if v.abs() <= 0.15 { 1 } else if *v > 0.0 { 2 } else { 0 };
+                        p[[i, k]] = 1.0;
+                    }
+                    DirectionScores { distance: sd.mapv(f32::abs), aot_probs: p }
+                }
+            })
+        })
+    }
+}

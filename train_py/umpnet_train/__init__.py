@@ -1,0 +1,1 @@
+"""PyTorch training for UMPNet against the umpnet Rust environments."""

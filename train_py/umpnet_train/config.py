@@ -1,0 +1,101 @@
+"""Training configuration: a dataclass with the paper's defaults, and presets."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+
+@dataclass
+class Config:
+    # Observation and networks
+    height: int = 480
+    width: int = 640
+    position_widths: tuple[int, ...] = (32, 64, 128, 256)
+    direction_widths: tuple[int, ...] = (32, 64, 128, 256)
+    embedding: int = 64
+    action_embedding: int = 32
+    variant: str = "umpnet"  # umpnet | single-step | aot-only | signed-dist
+    # Data collection (paper: 64 environments, 6400-sample FIFO replay buffer)
+    num_envs: int = 64
+    replay_size: int = 6400
+    categories: list[str] = field(default_factory=list)  # empty: the 12 training categories
+    # Epsilon-greedy schedules (linear decay over `*_decay_epochs`)
+    position_epsilon: tuple[float, float] = (1.0, 0.1)
+    position_decay_epochs: int = 300
+    direction_epsilon: tuple[float, float] = (1.0, 0.2)
+    direction_decay_epochs: int = 500
+    # Sequence-length curriculum: start, step, every, after, max
+    seq_start: int = 4
+    seq_step: int = 2
+    seq_every: int = 400
+    seq_after: int = 1000
+    seq_max: int = 20
+    # Optimisation
+    epochs: int = 10000
+    batch_position: int = 16  # balanced 1:1 positive/negative
+    batch_direction: int = 24  # balanced 1:1:1 over AoT classes
+    iterations_per_epoch: int = 4
+    lr: float = 1e-4
+    lr_decay_every: int = 5000
+    lr_decay: float = 0.5
+    dist_loss_weight: float = 100.0
+    # Bookkeeping
+    seed: int = 0
+    checkpoint_every: int = 50
+    eval_every: int = 0
+    threads: int = 2
+    renderer: str = "auto"
+
+
+PRESETS = {
+    "paper": {},
+    "cpu-small": {
+        "height": 96,
+        "width": 128,
+        "position_widths": (16, 32, 64),
+        "direction_widths": (16, 32, 64),
+        "embedding": 32,
+        "action_embedding": 16,
+        "num_envs": 16,
+        "replay_size": 6400,
+        "epochs": 400,
+        "position_decay_epochs": 200,
+        "direction_decay_epochs": 300,
+        "seq_start": 4,
+        "seq_every": 100,
+        "seq_after": 150,
+        "seq_max": 8,
+        "lr": 1e-3,
+        "lr_decay_every": 250,
+        "iterations_per_epoch": 4,
+        "checkpoint_every": 50,
+    },
+    "smoke": {
+        "height": 48,
+        "width": 64,
+        "position_widths": (8, 16),
+        "direction_widths": (8, 16),
+        "embedding": 16,
+        "action_embedding": 8,
+        "num_envs": 4,
+        "replay_size": 256,
+        "epochs": 3,
+        "seq_start": 3,
+        "seq_max": 3,
+        "iterations_per_epoch": 2,
+        "lr": 1e-3,
+        "checkpoint_every": 1,
+    },
+}
+
+
+def make_config(preset: str = "paper", **overrides) -> Config:
+    if preset not in PRESETS:
+        raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(PRESETS)}")
+    values = {**PRESETS[preset], **{k: v for k, v in overrides.items() if v is not None}}
+    names = {f.name for f in dataclasses.fields(Config)}
+    unknown = set(values) - names
+    if unknown:
+        raise ValueError(f"unknown config fields {sorted(unknown)}")
+    return Config(**values)

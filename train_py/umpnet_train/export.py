@@ -1,0 +1,173 @@
+"""Export a checkpoint as a model package the Rust runtime loads
+(contract: docs/model-package.md), checking ONNX against PyTorch.
+
+    python -m umpnet_train.export CKPT OUT_DIR
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from .config import Config
+from .models import CHANNELS, OBS_MEAN, OBS_STD, UMPNet
+
+FORMAT_VERSION = 1
+MAX_ABS_DIFF = 1e-3
+
+
+class PositionExport(nn.Module):
+    def __init__(self, net):
+        super().__init__()
+        self.net = net
+
+    def forward(self, observation):
+        return torch.softmax(self.net(observation), dim=1)[:, 1]
+
+
+class EncoderExport(nn.Module):
+    def __init__(self, enc):
+        super().__init__()
+        self.enc = enc
+
+    def forward(self, observation, reference, pixel):
+        return self.enc(observation, reference, pixel)
+
+
+class DecoderExport(nn.Module):
+    def __init__(self, dec, variant):
+        super().__init__()
+        self.dec, self.variant = dec, variant
+
+    def forward(self, dist_embedding, aot_embedding, direction):
+        distance, logits = self.dec(dist_embedding, aot_embedding, direction)
+        if self.variant == "aot-only":
+            return torch.softmax(logits, dim=1)
+        if self.variant == "signed-dist":
+            return distance
+        return distance, torch.softmax(logits, dim=1)
+
+
+def decoder_outputs(variant: str) -> list[str]:
+    return {"aot-only": ["aot_probs"], "signed-dist": ["signed_distance"]}.get(variant, ["distance", "aot_probs"])
+
+
+def branches(variant: str) -> list[str]:
+    return {"aot-only": ["aot"], "signed-dist": ["signed_dist"]}.get(variant, ["dist", "aot"])
+
+
+def _export(module, args, path, inputs, outputs, dynamic):
+    # The exporter restores the wrapper's mode afterwards, recursively: keep it in eval.
+    module.eval()
+    torch.onnx.export(
+        module,
+        args,
+        str(path),
+        input_names=inputs,
+        output_names=outputs,
+        dynamic_axes=dynamic,
+        opset_version=17,
+        dynamo=False,
+    )
+
+
+def export_model(model: UMPNet, cfg: Config, out: Path, provenance: dict, evaluation: dict | None = None) -> float:
+    """Writes the package; returns the largest |ONNX - PyTorch| over all outputs."""
+    import onnxruntime as ort
+
+    out.mkdir(parents=True, exist_ok=True)
+    model = model.eval().cpu()
+    h, w, e = cfg.height, cfg.width, cfg.embedding
+    g = torch.Generator().manual_seed(0)
+    obs = torch.randn(2, h, w, CHANNELS, generator=g) * 0.5 + torch.tensor(OBS_MEAN)
+    ref = torch.randn(2, h, w, CHANNELS, generator=g) * 0.5 + torch.tensor(OBS_MEAN)
+    pixel = torch.tensor([[h // 2, w // 3], [h - 1, 0]], dtype=torch.int64)
+    de = torch.randn(5, e, generator=g)
+    ae = torch.randn(5, e, generator=g)
+    direction = torch.nn.functional.normalize(torch.randn(5, 3, generator=g), dim=1)
+    dec_out = decoder_outputs(cfg.variant)
+    with torch.no_grad():
+        _export(PositionExport(model.position), (obs,), out / "position.onnx", ["observation"], ["affordance"],
+                {"observation": {0: "batch"}, "affordance": {0: "batch"}})
+        _export(EncoderExport(model.encoder), (obs, ref, pixel), out / "direction_encoder.onnx",
+                ["observation", "reference", "pixel"], ["dist_embedding", "aot_embedding"],
+                {k: {0: "batch"} for k in ["observation", "reference", "pixel", "dist_embedding", "aot_embedding"]})
+        _export(DecoderExport(model.decoder, cfg.variant), (de, ae, direction), out / "direction_decoder.onnx",
+                ["dist_embedding", "aot_embedding", "direction"], dec_out,
+                {k: {0: "candidates"} for k in ["dist_embedding", "aot_embedding", "direction", *dec_out]})
+        model.eval()
+        expected = {
+            "position.onnx": ([PositionExport(model.position)(obs)], {"observation": obs}),
+            "direction_encoder.onnx": (list(EncoderExport(model.encoder)(obs, ref, pixel)),
+                                       {"observation": obs, "reference": ref, "pixel": pixel}),
+        }
+        dec = DecoderExport(model.decoder, cfg.variant)(de, ae, direction)
+        expected["direction_decoder.onnx"] = (list(dec) if isinstance(dec, tuple) else [dec],
+                                              {"dist_embedding": de, "aot_embedding": ae, "direction": direction})
+    worst = 0.0
+    for name, (torch_out, feeds) in expected.items():
+        sess = ort.InferenceSession(str(out / name), providers=["CPUExecutionProvider"])
+        onnx_out = sess.run(None, {k: v.numpy() for k, v in feeds.items()})
+        for a, b in zip(torch_out, onnx_out):
+            worst = max(worst, float(np.abs(a.numpy() - b).max()))
+            if float(np.abs(a.numpy() - b).max()) > MAX_ABS_DIFF:
+                print(f"{name}: output differs by {float(np.abs(a.numpy() - b).max()):.2e}", file=sys.stderr)
+    meta = {
+        "format": "umpnet-model",
+        "version": FORMAT_VERSION,
+        "variant": cfg.variant,
+        "input": {
+            "height": h,
+            "width": w,
+            "channels": CHANNELS,
+            "layout": "NHWC float32",
+            "channel_order": ["x", "y", "z", "r", "g", "b", "nx", "ny", "nz", "depth"],
+            "normalisation": {"mean": OBS_MEAN, "std": OBS_STD, "applied": "inside the networks"},
+        },
+        "embedding": e,
+        "branches": branches(cfg.variant),
+        "uses_reference": cfg.variant != "single-step",
+        "aot_classes": [-1, 0, 1],
+        "files": {
+            "position": "position.onnx",
+            "direction_encoder": "direction_encoder.onnx",
+            "direction_decoder": "direction_decoder.onnx",
+        },
+        "decoder_outputs": dec_out,
+        "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(cfg).items()},
+        "provenance": provenance,
+        "evaluation": evaluation or {},
+        "export_check": {"max_abs_diff_onnx_vs_torch": worst},
+    }
+    (out / "model.json").write_text(json.dumps(meta, indent=2))
+    if worst > MAX_ABS_DIFF:
+        raise RuntimeError(f"ONNX and PyTorch disagree by {worst:.2e} (> {MAX_ABS_DIFF})")
+    return worst
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("checkpoint", type=Path)
+    p.add_argument("out", type=Path)
+    a = p.parse_args(argv)
+    if not a.checkpoint.is_file():
+        print(f"error: {a.checkpoint}: no such checkpoint", file=sys.stderr)
+        return 2
+    ck = torch.load(a.checkpoint, map_location="cpu", weights_only=False)
+    cfg = Config(**ck["config"])
+    model = UMPNet(cfg)
+    model.load_state_dict(ck["model"])
+    worst = export_model(model, cfg, a.out, ck.get("provenance", {}), ck.get("evaluation"))
+    print(f"wrote {a.out} (max |ONNX - PyTorch| = {worst:.2e})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,137 @@
+"""The networks: PositionNet (per-pixel affordance) and DirectionNet (Dist and
+AoT branches over an image encoder and an action decoder), as in the paper.
+
+Observations enter as N x H x W x 10 (the Rust layout) and are normalised
+inside the networks, so exported ONNX graphs take raw observations.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+CHANNELS = 10
+# Channel statistics of the reference camera's observations: xyz around the
+# object, rgb and normals in [-1, 1] ranges, depth around 2 m.
+OBS_MEAN = [0.0, -0.5, 0.3, 0.5, 0.5, 0.5, 0.0, -0.5, 0.5, 2.2]
+OBS_STD = [0.5, 0.5, 0.3, 0.25, 0.25, 0.25, 0.5, 0.5, 0.5, 0.6]
+AOT_CLASSES = (-1, 0, 1)  # index -> Arrow-of-Time label
+
+
+class Normalize(nn.Module):
+    def __init__(self, repeats: int = 1):
+        super().__init__()
+        self.register_buffer("mean", torch.tensor(OBS_MEAN * repeats).view(1, -1, 1, 1))
+        self.register_buffer("std", torch.tensor(OBS_STD * repeats).view(1, -1, 1, 1))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return (x - self.mean) / self.std
+
+
+def block(cin: int, cout: int, stride: int = 1) -> nn.Sequential:
+    return nn.Sequential(
+        nn.Conv2d(cin, cout, 3, stride=stride, padding=1, bias=False),
+        nn.BatchNorm2d(cout),
+        nn.ReLU(inplace=True),
+        nn.Conv2d(cout, cout, 3, padding=1, bias=False),
+        nn.BatchNorm2d(cout),
+        nn.ReLU(inplace=True),
+    )
+
+
+class UNet(nn.Module):
+    """A small U-Net: widths[0] at full resolution, halving resolution per level."""
+
+    def __init__(self, cin: int, widths: tuple[int, ...], cout: int):
+        super().__init__()
+        self.down = nn.ModuleList([block(cin, widths[0])])
+        for a, b in zip(widths[:-1], widths[1:]):
+            self.down.append(block(a, b, stride=2))
+        self.up = nn.ModuleList([block(b + a, a) for a, b in zip(widths[:-1], widths[1:])])
+        self.head = nn.Conv2d(widths[0], cout, 1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        skips = []
+        for d in self.down:
+            x = d(x)
+            skips.append(x)
+        x = skips.pop()
+        for up in reversed(self.up):
+            skip = skips.pop()
+            x = F.interpolate(x, size=skip.shape[-2:], mode="bilinear", align_corners=False)
+            x = up(torch.cat([x, skip], dim=1))
+        return self.head(x)
+
+
+class PositionNet(nn.Module):
+    """Per-pixel two-class output: will acting here move the object?"""
+
+    def __init__(self, widths: tuple[int, ...]):
+        super().__init__()
+        self.norm = Normalize()
+        self.unet = UNet(CHANNELS, widths, 2)
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        """observation N x H x W x 10 -> logits N x 2 x H x W."""
+        return self.unet(self.norm(observation.permute(0, 3, 1, 2)))
+
+
+def features_at(fmap: torch.Tensor, pixel: torch.Tensor) -> torch.Tensor:
+    """fmap N x C x H x W, pixel N x 2 (row, col) int64 -> N x C."""
+    n, c, h, w = fmap.shape
+    index = (pixel[:, 0].clamp(0, h - 1) * w + pixel[:, 1].clamp(0, w - 1)).view(n, 1, 1).expand(n, c, 1)
+    return torch.gather(fmap.reshape(n, c, h * w), 2, index).squeeze(2)
+
+
+class DirectionEncoder(nn.Module):
+    """Image embeddings at the grasp pixel for the Dist branch (current
+    observation) and the AoT branch (current + reference observation)."""
+
+    def __init__(self, widths: tuple[int, ...], embedding: int, use_reference: bool = True):
+        super().__init__()
+        self.use_reference = use_reference
+        self.norm1 = Normalize()
+        self.norm2 = Normalize(2 if use_reference else 1)
+        self.dist = UNet(CHANNELS, widths, embedding)
+        self.aot = UNet(CHANNELS * (2 if use_reference else 1), widths, embedding)
+
+    def forward(self, observation, reference, pixel):
+        cur = observation.permute(0, 3, 1, 2)
+        dist_in = self.norm1(cur)
+        if self.use_reference:
+            aot_in = self.norm2(torch.cat([cur, reference.permute(0, 3, 1, 2)], dim=1))
+        else:
+            aot_in = self.norm2(cur) + 0.0 * reference.sum()
+        return features_at(self.dist(dist_in), pixel), features_at(self.aot(aot_in), pixel)
+
+
+class DirectionDecoder(nn.Module):
+    """Scores one candidate direction from the cached image embeddings."""
+
+    def __init__(self, embedding: int, action_embedding: int, variant: str = "umpnet"):
+        super().__init__()
+        self.variant = variant
+        self.action = nn.Sequential(nn.Linear(3, action_embedding), nn.ReLU(), nn.Linear(action_embedding, action_embedding))
+        hidden = 64
+        self.dist_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 1))
+        self.aot_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 3))
+
+    def forward(self, dist_embedding, aot_embedding, direction):
+        """Returns (distance N, aot_logits N x 3); for signed-dist, distance is signed."""
+        a = self.action(direction)
+        distance = self.dist_head(torch.cat([dist_embedding, a], dim=1)).squeeze(1)
+        aot_logits = self.aot_head(torch.cat([aot_embedding, a], dim=1))
+        return distance, aot_logits
+
+
+class UMPNet(nn.Module):
+    def __init__(self, cfg):
+        super().__init__()
+        self.position = PositionNet(tuple(cfg.position_widths))
+        self.encoder = DirectionEncoder(tuple(cfg.direction_widths), cfg.embedding, cfg.variant != "single-step")
+        self.decoder = DirectionDecoder(cfg.embedding, cfg.action_embedding, cfg.variant)
+
+    def direction(self, observation, reference, pixel, direction):
+        de, ae = self.encoder(observation, reference, pixel)
+        return self.decoder(de, ae, direction)
