@@ -65,6 +65,7 @@ fn physics_ms(category: Category, actions: usize) -> Result<f64> {
         let obs = Observation {
             frame: &f,
             reference: &f,
+            gripper_in_world: None,
         };
         let px = oracle.position(&obs, &env)?;
         if let Pick::NoMovableLink = env.step_position(&f, px.0, px.1)? {

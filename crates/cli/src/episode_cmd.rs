@@ -16,9 +16,13 @@ pub struct EpisodeArgs {
     /// Number of direction actions (default: the category's budget; 15 for goals).
     #[arg(long)]
     pub steps: Option<usize>,
-    /// random or oracle.
+    /// random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
     #[arg(long, default_value = "oracle")]
     pub policy: String,
+    /// Model package for --policy umpnet (default: models/umpnet-small).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Image size; a learned policy uses its model's.
     #[arg(long, default_value = "240x320", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
     #[arg(long, default_value = "auto")]
@@ -28,23 +32,21 @@ pub struct EpisodeArgs {
     pub out: Option<PathBuf>,
 }
 
-pub fn make_policy(name: &str) -> Result<Box<dyn Policy>> {
-    umpnet_eval::scripted_policy(name).ok_or_else(|| {
-        usage(format!(
-            "--policy {name}: unknown policy; expected random or oracle"
-        ))
-    })
-}
-
 pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
-    let mut policy = make_policy(&a.policy)?;
+    let resolved =
+        crate::policies::resolve(std::slice::from_ref(&a.policy), a.model.as_deref(), 1)?;
+    let mut policy: Box<dyn Policy> = match resolved.factories.first() {
+        Some((_, make)) => make()?,
+        None => return Err(usage("--policy is empty")),
+    };
+    let resolution = resolved.resolution.unwrap_or(a.resolution);
     let scene = a.object.scene(task)?;
     let budget = a.steps.unwrap_or(match (task, scene.category) {
         (Task::Goal, _) => GOAL_STEPS,
         (Task::Exploration, Some(c)) => c.step_budget(),
         (Task::Exploration, None) => 10,
     });
-    let camera = Camera::reference(a.resolution.0, a.resolution.1);
+    let camera = Camera::reference(resolution.0, resolution.1);
     let mut pictures: Vec<RgbImage> = Vec::new();
     let mut hook = |t: usize, f: &Frame, step: Option<&Step>, pixel: (u32, u32)| {
         pictures.push(step_picture(f, t, step, pixel));

@@ -3,7 +3,6 @@ use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use umpnet_eval::bench::{BenchConfig, EpisodeOutcome, PolicyFactory, mean_ci, run_benchmark};
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
@@ -22,9 +21,12 @@ pub struct EvalArgs {
     pub split: String,
     #[arg(long, default_value_t = 100)]
     pub episodes_per_category: u32,
-    /// Comma-separated policies.
+    /// Comma-separated policies: random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
     #[arg(long, value_delimiter = ',', default_value = "oracle,random")]
     pub policies: Vec<String>,
+    /// Model package for `umpnet` (default: models/umpnet-small).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     #[arg(long, default_value = "120x160", value_parser = crate::parse_resolution)]
@@ -91,23 +93,18 @@ pub fn run(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     if a.episodes_per_category == 0 {
         return Err(usage("--episodes-per-category must be at least 1"));
     }
-    let mut policies: Vec<(String, PolicyFactory)> = Vec::new();
-    for name in &a.policies {
-        crate::episode_cmd::make_policy(name)?;
-        let n = name.clone();
-        let f: PolicyFactory = Arc::new(move || {
-            umpnet_eval::scripted_policy(&n)
-                .ok_or_else(|| umpnet_eval::EvalError::Episode(format!("unknown policy {n}")))
-        });
-        policies.push((name.clone(), f));
-    }
+    let threads = a.threads.unwrap_or_else(rayon::current_num_threads).max(1);
+    let resolved = crate::policies::resolve(&a.policies, a.model.as_deref(), threads)?;
+    let policies: Vec<(String, PolicyFactory)> = resolved.factories;
+    let names: Vec<String> = policies.iter().map(|(n, _)| n.clone()).collect();
+    let resolution = resolved.resolution.unwrap_or(a.resolution);
     let cfg = BenchConfig {
         task: a.task,
         categories: categories.clone(),
         episodes_per_category: a.episodes_per_category,
         seed: a.seed,
         dataset_seed: 0,
-        camera: Camera::reference(a.resolution.0, a.resolution.1),
+        camera: Camera::reference(resolution.0, resolution.1),
         renderer: a.renderer,
         steps: None,
     };
@@ -144,10 +141,10 @@ pub fn run(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
             }
         }
     }
-    let table = render_table(a.task, &a.policies, &categories, &cells);
+    let table = render_table(a.task, &names, &categories, &cells);
     let summary = serde_json::json!({
         "task": a.task, "seed": a.seed, "episodes_per_category": a.episodes_per_category,
-        "resolution": [a.resolution.0, a.resolution.1], "wall_seconds": wall, "failed_episodes": failures.len(),
+        "resolution": [resolution.0, resolution.1], "policies": names, "wall_seconds": wall, "failed_episodes": failures.len(),
         "cells": cells.iter().map(|((p, c, m), v)| { let (mean, ci) = mean_ci(v); serde_json::json!({"policy": p, "category": c.name(), "metric": m, "mean": mean, "ci95": ci, "n": v.len()}) }).collect::<Vec<_>>(),
     });
     if let Some(out) = &a.out {
@@ -167,7 +164,7 @@ pub fn run(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         let full = serde_json::json!({"summary": summary, "episodes": outcomes});
         std::fs::write(out.join("results.json"), serde_json::to_string(&full)?)?;
         std::fs::write(out.join("table.txt"), &table)?;
-        if let Err(e) = plot_curves(a.task, &a.policies, &outcomes, &out.join("curve.png")) {
+        if let Err(e) = plot_curves(a.task, &names, &outcomes, &out.join("curve.png")) {
             eprintln!("warning: no plot: {e:#}");
         }
     }

@@ -3,7 +3,9 @@ mod bench_cmd;
 mod episode_cmd;
 mod eval_cmd;
 mod images;
+mod infer_cmd;
 mod objects_cmd;
+mod policies;
 mod render_cmd;
 
 use anyhow::Result;
@@ -42,6 +44,8 @@ enum Command {
     Eval(eval_cmd::EvalArgs),
     /// Simulator and renderer speed figures.
     Bench(bench_cmd::BenchArgs),
+    /// The next action for real RGB-D frames (JSON).
+    Infer(infer_cmd::InferArgs),
 }
 
 pub struct Ctx {
@@ -171,6 +175,7 @@ fn main() {
         Command::Goal(a) => episode_cmd::run(&ctx, a, Task::Goal),
         Command::Eval(a) => eval_cmd::run(&ctx, a),
         Command::Bench(a) => bench_cmd::run(&ctx, a),
+        Command::Infer(a) => infer_cmd::run(&ctx, a),
     };
     if let Err(e) = result {
         let code = if e.downcast_ref::<Usage>().is_some() {

@@ -64,6 +64,7 @@ pub fn run_episode(
         &Observation {
             frame: &first,
             reference: &reference,
+            gripper_in_world: None,
         },
         &env,
     )?;
@@ -87,6 +88,7 @@ pub fn run_episode(
                 &Observation {
                     frame: &frame,
                     reference: &reference,
+                    gripper_in_world: env.articulation().gripper_position(),
                 },
                 &env,
                 &history,

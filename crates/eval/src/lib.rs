@@ -2,6 +2,7 @@
 //! one crate that joins the simulator and the policy runtime.
 pub mod bench;
 pub mod episode;
+pub mod learned;
 pub mod policy;
 pub mod scripted;
 

@@ -9,6 +9,8 @@ use umpnet_sim::render::Frame;
 pub struct Observation<'a> {
     pub frame: &'a Frame,
     pub reference: &'a Frame,
+    /// Where the robot's own gripper is (proprioception), once it holds something.
+    pub gripper_in_world: Option<Vec3>,
 }
 
 /// Extra output a policy may give for pictures: candidate directions with

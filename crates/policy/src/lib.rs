@@ -1,12 +1,16 @@
 //! umpnet-policy: the UMPNet policy runtime. Inputs are RGB-D frames,
 //! intrinsics and a camera pose — from the simulator or a real camera; this
 //! crate never depends on the simulator.
+pub mod axis;
+pub mod cem;
 pub mod error;
 pub mod observation;
 
 pub use error::{PolicyError, Result};
 pub use observation::{CHANNELS, CameraFrame, build_observation};
 pub mod package;
+pub mod policy;
 pub mod runtime;
 
-pub use package::{Branches, DirectionScores, ModelPackage, ModelMeta};
+pub use package::{Branches, DirectionScores, ModelMeta, ModelPackage};
+pub use policy::{DecisionInput, PositionChoice, UmpnetPolicy};

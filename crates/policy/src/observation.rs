@@ -204,3 +204,56 @@ mod tests {
         );
     }
 }
+
+/// A frame resized (nearest neighbour) to the model's resolution, with the
+/// intrinsics scaled to match; owns its buffers.
+#[derive(Clone, Debug)]
+pub struct OwnedFrame {
+    pub width: usize,
+    pub height: usize,
+    pub rgb: Vec<u8>,
+    pub depth: Vec<f32>,
+    pub intrinsics: [f32; 4],
+    pub world_from_camera: [[f32; 4]; 4],
+}
+
+impl OwnedFrame {
+    pub fn view(&self) -> CameraFrame<'_> {
+        CameraFrame {
+            width: self.width,
+            height: self.height,
+            rgb: &self.rgb,
+            depth: &self.depth,
+            intrinsics: self.intrinsics,
+            world_from_camera: self.world_from_camera,
+        }
+    }
+}
+
+pub fn resize_nearest(frame: &CameraFrame, height: usize, width: usize) -> Result<OwnedFrame> {
+    frame.validate()?;
+    let (sx, sy) = (
+        frame.width as f32 / width as f32,
+        frame.height as f32 / height as f32,
+    );
+    let mut rgb = Vec::with_capacity(width * height * 3);
+    let mut depth = Vec::with_capacity(width * height);
+    for r in 0..height {
+        let sr = (((r as f32 + 0.5) * sy) as usize).min(frame.height - 1);
+        for c in 0..width {
+            let sc = (((c as f32 + 0.5) * sx) as usize).min(frame.width - 1);
+            let i = sr * frame.width + sc;
+            rgb.extend_from_slice(&frame.rgb[i * 3..i * 3 + 3]);
+            depth.push(frame.depth[i]);
+        }
+    }
+    let [fx, fy, cx, cy] = frame.intrinsics;
+    Ok(OwnedFrame {
+        width,
+        height,
+        rgb,
+        depth,
+        intrinsics: [fx / sx, fy / sy, cx / sx, cy / sy],
+        world_from_camera: frame.world_from_camera,
+    })
+}

@@ -84,21 +84,46 @@ fn ort_err(file: &Path, e: impl std::fmt::Display) -> PolicyError {
 }
 
 fn pkg_err(path: &Path, what: impl Into<String>) -> PolicyError {
-    PolicyError::Package { path: path.to_path_buf(), what: what.into() }
+    PolicyError::Package {
+        path: path.to_path_buf(),
+        what: what.into(),
+    }
 }
 
 /// Checks a session's tensor names and (static) shapes; -1 = any.
-fn check_io(file: &Path, session: &Session, inputs: &[(&str, Vec<i64>)], outputs: &[(&str, Vec<i64>)]) -> Result<()> {
-    for (kind, outlets, wanted) in [("input", session.inputs(), inputs), ("output", session.outputs(), outputs)] {
+fn check_io(
+    file: &Path,
+    session: &Session,
+    inputs: &[(&str, Vec<i64>)],
+    outputs: &[(&str, Vec<i64>)],
+) -> Result<()> {
+    for (kind, outlets, wanted) in [
+        ("input", session.inputs(), inputs),
+        ("output", session.outputs(), outputs),
+    ] {
         for (name, shape) in wanted {
             let Some(o) = outlets.iter().find(|o| o.name() == *name) else {
                 let found: Vec<&str> = outlets.iter().map(|o| o.name()).collect();
-                return Err(pkg_err(file, format!("{kind} `{name}` missing; found {found:?}")));
+                return Err(pkg_err(
+                    file,
+                    format!("{kind} `{name}` missing; found {found:?}"),
+                ));
             };
-            let found: Vec<i64> = o.dtype().tensor_shape().map(|s| s.iter().copied().collect()).unwrap_or_default();
-            let ok = found.len() == shape.len() && found.iter().zip(shape).all(|(f, e)| *e < 0 || *f < 0 || f == e);
+            let found: Vec<i64> = o
+                .dtype()
+                .tensor_shape()
+                .map(|s| s.iter().copied().collect())
+                .unwrap_or_default();
+            let ok = found.len() == shape.len()
+                && found
+                    .iter()
+                    .zip(shape)
+                    .all(|(f, e)| *e < 0 || *f < 0 || f == e);
             if !ok {
-                return Err(pkg_err(file, format!("{kind} `{name}`: expected shape {shape:?}, found {found:?}")));
+                return Err(pkg_err(
+                    file,
+                    format!("{kind} `{name}`: expected shape {shape:?}, found {found:?}"),
+                ));
             }
         }
     }
@@ -108,34 +133,72 @@ fn check_io(file: &Path, session: &Session, inputs: &[(&str, Vec<i64>)], outputs
 impl ModelPackage {
     /// Loads and validates a package with `sessions` concurrent session sets
     /// and `threads` intra-op threads each.
-    pub fn load(dir: &Path, sessions: usize, threads: usize, ort_library: Option<&Path>) -> Result<Self> {
+    pub fn load(
+        dir: &Path,
+        sessions: usize,
+        threads: usize,
+        ort_library: Option<&Path>,
+    ) -> Result<Self> {
         let meta_path = dir.join("model.json");
-        let text = std::fs::read_to_string(&meta_path).map_err(|e| pkg_err(&meta_path, format!("cannot read: {e}")))?;
-        let meta: ModelMeta = serde_json::from_str(&text).map_err(|e| pkg_err(&meta_path, format!("invalid: {e}")))?;
+        let text = std::fs::read_to_string(&meta_path)
+            .map_err(|e| pkg_err(&meta_path, format!("cannot read: {e}")))?;
+        let meta: ModelMeta = serde_json::from_str(&text)
+            .map_err(|e| pkg_err(&meta_path, format!("invalid: {e}")))?;
         if meta.format != "umpnet-model" {
-            return Err(pkg_err(&meta_path, format!("`format` is `{}`, expected `umpnet-model`", meta.format)));
+            return Err(pkg_err(
+                &meta_path,
+                format!("`format` is `{}`, expected `umpnet-model`", meta.format),
+            ));
         }
         if meta.version != FORMAT_VERSION {
-            return Err(pkg_err(&meta_path, format!("`version` is {}, this runtime reads version {FORMAT_VERSION}", meta.version)));
+            return Err(pkg_err(
+                &meta_path,
+                format!(
+                    "`version` is {}, this runtime reads version {FORMAT_VERSION}",
+                    meta.version
+                ),
+            ));
         }
         if meta.input.channels != CHANNELS {
-            return Err(pkg_err(&meta_path, format!("`input.channels` is {}, expected {CHANNELS}", meta.input.channels)));
+            return Err(pkg_err(
+                &meta_path,
+                format!(
+                    "`input.channels` is {}, expected {CHANNELS}",
+                    meta.input.channels
+                ),
+            ));
         }
         if meta.input.height == 0 || meta.input.width == 0 || meta.embedding == 0 {
-            return Err(pkg_err(&meta_path, "`input.height`, `input.width` and `embedding` must be positive"));
+            return Err(pkg_err(
+                &meta_path,
+                "`input.height`, `input.width` and `embedding` must be positive",
+            ));
         }
         let has = |b: &str| meta.branches.iter().any(|x| x == b);
         let (branches, decoder_outputs) = if has("dist") && has("aot") {
-            (Branches::DistAot, vec!["distance".to_string(), "aot_probs".to_string()])
+            (
+                Branches::DistAot,
+                vec!["distance".to_string(), "aot_probs".to_string()],
+            )
         } else if has("aot") {
             (Branches::AotOnly, vec!["aot_probs".to_string()])
         } else if has("signed_dist") {
             (Branches::SignedDist, vec!["signed_distance".to_string()])
         } else {
-            return Err(pkg_err(&meta_path, format!("`branches` {:?}: expected [dist, aot], [aot] or [signed_dist]", meta.branches)));
+            return Err(pkg_err(
+                &meta_path,
+                format!(
+                    "`branches` {:?}: expected [dist, aot], [aot] or [signed_dist]",
+                    meta.branches
+                ),
+            ));
         };
         let env = crate::runtime::environment(ort_library)?;
-        let (h, w, e) = (meta.input.height as i64, meta.input.width as i64, meta.embedding as i64);
+        let (h, w, e) = (
+            meta.input.height as i64,
+            meta.input.width as i64,
+            meta.embedding as i64,
+        );
         let c = CHANNELS as i64;
         let mut pool = Vec::new();
         for _ in 0..sessions.max(1) {
@@ -151,21 +214,63 @@ impl ModelPackage {
                 Ok((file, s))
             };
             let (pf, position) = open(&meta.files.position)?;
-            check_io(&pf, &position, &[("observation", vec![-1, h, w, c])], &[("affordance", vec![-1, h, w])])?;
+            check_io(
+                &pf,
+                &position,
+                &[("observation", vec![-1, h, w, c])],
+                &[("affordance", vec![-1, h, w])],
+            )?;
             let (ef, encoder) = open(&meta.files.direction_encoder)?;
             check_io(
                 &ef,
                 &encoder,
-                &[("observation", vec![-1, h, w, c]), ("reference", vec![-1, h, w, c]), ("pixel", vec![-1, 2])],
-                &[("dist_embedding", vec![-1, e]), ("aot_embedding", vec![-1, e])],
+                &[
+                    ("observation", vec![-1, h, w, c]),
+                    ("reference", vec![-1, h, w, c]),
+                    ("pixel", vec![-1, 2]),
+                ],
+                &[
+                    ("dist_embedding", vec![-1, e]),
+                    ("aot_embedding", vec![-1, e]),
+                ],
             )?;
             let (df, decoder) = open(&meta.files.direction_decoder)?;
-            let outs: Vec<(&str, Vec<i64>)> =
-                decoder_outputs.iter().map(|n| (n.as_str(), if n == "aot_probs" { vec![-1, 3] } else { vec![-1] })).collect();
-            check_io(&df, &decoder, &[("dist_embedding", vec![-1, e]), ("aot_embedding", vec![-1, e]), ("direction", vec![-1, 3])], &outs)?;
-            pool.push(Mutex::new(Sessions { position, encoder, decoder }));
+            let outs: Vec<(&str, Vec<i64>)> = decoder_outputs
+                .iter()
+                .map(|n| {
+                    (
+                        n.as_str(),
+                        if n == "aot_probs" {
+                            vec![-1, 3]
+                        } else {
+                            vec![-1]
+                        },
+                    )
+                })
+                .collect();
+            check_io(
+                &df,
+                &decoder,
+                &[
+                    ("dist_embedding", vec![-1, e]),
+                    ("aot_embedding", vec![-1, e]),
+                    ("direction", vec![-1, 3]),
+                ],
+                &outs,
+            )?;
+            pool.push(Mutex::new(Sessions {
+                position,
+                encoder,
+                decoder,
+            }));
         }
-        Ok(Self { dir: dir.to_path_buf(), meta, branches, pool, decoder_outputs })
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            meta,
+            branches,
+            pool,
+            decoder_outputs,
+        })
     }
 
     fn with_sessions<T>(&self, f: impl FnOnce(&mut Sessions) -> Result<T>) -> Result<T> {
@@ -174,7 +279,9 @@ impl ModelPackage {
                 return f(&mut s);
             }
         }
-        let mut s = self.pool[0].lock().map_err(|_| PolicyError::Runtime("session lock poisoned".into()))?;
+        let mut s = self.pool[0]
+            .lock()
+            .map_err(|_| PolicyError::Runtime("session lock poisoned".into()))?;
         f(&mut s)
     }
 
@@ -197,19 +304,36 @@ impl ModelPackage {
         self.with_sessions(|s| {
             let file = self.dir.join(&self.meta.files.position);
             let o = observation.as_standard_layout();
-            let input = TensorRef::from_array_view(o.view().into_dyn()).map_err(|e| ort_err(&file, e))?;
-            let out = s.position.run(ort::inputs!["observation" => input]).map_err(|e| ort_err(&file, e))?;
-            let a = out["affordance"].try_extract_array::<f32>().map_err(|e| ort_err(&file, e))?;
-            a.to_owned().into_dimensionality().map_err(|e| ort_err(&file, e))
+            let input =
+                TensorRef::from_array_view(o.view().into_dyn()).map_err(|e| ort_err(&file, e))?;
+            let out = s
+                .position
+                .run(ort::inputs!["observation" => input])
+                .map_err(|e| ort_err(&file, e))?;
+            let a = out["affordance"]
+                .try_extract_array::<f32>()
+                .map_err(|e| ort_err(&file, e))?;
+            a.to_owned()
+                .into_dimensionality()
+                .map_err(|e| ort_err(&file, e))
         })
     }
 
     /// Image embeddings at the grasp pixels: (dist, aot), each batch x E.
-    pub fn encode(&self, observation: ArrayView4<f32>, reference: ArrayView4<f32>, pixel: ArrayView2<i64>) -> Result<(Array2<f32>, Array2<f32>)> {
+    pub fn encode(
+        &self,
+        observation: ArrayView4<f32>,
+        reference: ArrayView4<f32>,
+        pixel: ArrayView2<i64>,
+    ) -> Result<(Array2<f32>, Array2<f32>)> {
         self.check_obs("observation", &observation)?;
         self.check_obs("reference", &reference)?;
         if pixel.shape() != [observation.shape()[0], 2] {
-            return Err(PolicyError::Input(format!("pixel has shape {:?}, expected [{}, 2]", pixel.shape(), observation.shape()[0])));
+            return Err(PolicyError::Input(format!(
+                "pixel has shape {:?}, expected [{}, 2]",
+                pixel.shape(),
+                observation.shape()[0]
+            )));
         }
         self.with_sessions(|s| {
             let file = self.dir.join(&self.meta.files.direction_encoder);
@@ -226,17 +350,30 @@ impl ModelPackage {
                 ])
                 .map_err(e)?;
             let get = |n: &str| -> Result<Array2<f32>> {
-                out[n].try_extract_array::<f32>().map_err(e)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
+                out[n]
+                    .try_extract_array::<f32>()
+                    .map_err(e)?
+                    .to_owned()
+                    .into_dimensionality()
+                    .map_err(|x| ort_err(&file, x))
             };
             Ok((get("dist_embedding")?, get("aot_embedding")?))
         })
     }
 
     /// Scores candidates: rows of the embeddings pair with rows of `direction`.
-    pub fn decode(&self, dist_embedding: ArrayView2<f32>, aot_embedding: ArrayView2<f32>, direction: ArrayView2<f32>) -> Result<DirectionScores> {
+    pub fn decode(
+        &self,
+        dist_embedding: ArrayView2<f32>,
+        aot_embedding: ArrayView2<f32>,
+        direction: ArrayView2<f32>,
+    ) -> Result<DirectionScores> {
         let n = direction.shape()[0];
         let e = self.meta.embedding;
-        if dist_embedding.shape() != [n, e] || aot_embedding.shape() != [n, e] || direction.shape() != [n, 3] {
+        if dist_embedding.shape() != [n, e]
+            || aot_embedding.shape() != [n, e]
+            || direction.shape() != [n, 3]
+        {
             return Err(PolicyError::Input(format!(
                 "decoder inputs: embeddings {:?}/{:?} and directions {:?}, expected [{n}, {e}] and [{n}, 3]",
                 dist_embedding.shape(),

@@ -16,9 +16,15 @@ fn in_site_packages(site: &Path) -> Option<PathBuf> {
     if exact.is_file() {
         return Some(exact);
     }
-    std::fs::read_dir(&capi).ok()?.flatten().map(|e| e.path()).find(|p| {
-        p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with("libonnxruntime.so.1."))
-    })
+    std::fs::read_dir(&capi)
+        .ok()?
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("libonnxruntime.so.1."))
+        })
 }
 
 /// `.venv/lib/python3*/site-packages` under `dir` or any of its ancestors.
@@ -38,7 +44,10 @@ fn venv_library(dir: &Path) -> Option<PathBuf> {
 
 fn python_library() -> Option<PathBuf> {
     let out = std::process::Command::new("python3")
-        .args(["-c", "import onnxruntime, os; print(os.path.dirname(os.path.dirname(onnxruntime.__file__)))"])
+        .args([
+            "-c",
+            "import onnxruntime, os; print(os.path.dirname(os.path.dirname(onnxruntime.__file__)))",
+        ])
         .output()
         .ok()?;
     if !out.status.success() {
@@ -55,7 +64,10 @@ pub fn find_library(explicit: Option<&Path>) -> Result<PathBuf> {
         return if p.is_file() {
             Ok(p.to_path_buf())
         } else {
-            Err(PolicyError::Runtime(format!("ONNX Runtime library {} does not exist", p.display())))
+            Err(PolicyError::Runtime(format!(
+                "ONNX Runtime library {} does not exist",
+                p.display()
+            )))
         };
     }
     if let Some(p) = std::env::var_os("ORT_DYLIB_PATH") {
@@ -63,10 +75,15 @@ pub fn find_library(explicit: Option<&Path>) -> Result<PathBuf> {
         return if p.is_file() {
             Ok(p)
         } else {
-            Err(PolicyError::Runtime(format!("ORT_DYLIB_PATH={} does not exist", p.display())))
+            Err(PolicyError::Runtime(format!(
+                "ORT_DYLIB_PATH={} does not exist",
+                p.display()
+            )))
         };
     }
-    let exe_dir = std::env::current_exe().ok().and_then(|e| e.parent().map(Path::to_path_buf));
+    let exe_dir = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(Path::to_path_buf));
     let cwd = std::env::current_dir().ok();
     exe_dir
         .iter()
@@ -84,7 +101,9 @@ pub fn find_library(explicit: Option<&Path>) -> Result<PathBuf> {
 /// The process-wide ONNX Runtime environment, loading the library on first use.
 pub fn environment(explicit: Option<&Path>) -> Result<&'static ort::environment::Environment> {
     ensure_loaded(explicit)?;
-    ENVIRONMENT.get().ok_or_else(|| PolicyError::Runtime("ONNX Runtime environment missing".into()))
+    ENVIRONMENT
+        .get()
+        .ok_or_else(|| PolicyError::Runtime("ONNX Runtime environment missing".into()))
 }
 
 /// Loads ONNX Runtime once per process; later calls return the same path.
@@ -92,8 +111,12 @@ pub fn ensure_loaded(explicit: Option<&Path>) -> Result<PathBuf> {
     LOADED
         .get_or_init(|| {
             let path = find_library(explicit).map_err(|e| e.to_string())?;
-            let builder = ort::init_from(&path).map_err(|e| format!("loading {}: {e}", path.display()))?;
-            let env = builder.with_name("umpnet").build().map_err(|e| format!("starting ONNX Runtime: {e}"))?;
+            let builder =
+                ort::init_from(&path).map_err(|e| format!("loading {}: {e}", path.display()))?;
+            let env = builder
+                .with_name("umpnet")
+                .build()
+                .map_err(|e| format!("starting ONNX Runtime: {e}"))?;
             // Sessions hold only a weak reference: the environment lives as long as the process.
             let _ = ENVIRONMENT.set(env);
             Ok(path)

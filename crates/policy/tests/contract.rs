@@ -6,26 +6,48 @@ use umpnet_policy::ModelPackage;
 
 fn fixture() -> Option<PathBuf> {
     let dir = PathBuf::from(std::env::var_os("UMPNET_FIXTURE")?);
-    assert!(dir.join("model.json").is_file(), "UMPNET_FIXTURE={} has no model.json", dir.display());
+    assert!(
+        dir.join("model.json").is_file(),
+        "UMPNET_FIXTURE={} has no model.json",
+        dir.display()
+    );
     Some(dir)
 }
 
 fn read_bin(dir: &Path, entry: &serde_json::Value) -> (String, ArrayD<f32>, Vec<i64>) {
     let name = entry["name"].as_str().unwrap().to_string();
-    let shape: Vec<usize> = entry["shape"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as usize).collect();
+    let shape: Vec<usize> = entry["shape"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap() as usize)
+        .collect();
     let bytes = std::fs::read(dir.join("reference").join(entry["file"].as_str().unwrap())).unwrap();
     if entry["dtype"] == "int64" {
-        let ints: Vec<i64> = bytes.chunks_exact(8).map(|c| i64::from_le_bytes(c.try_into().unwrap())).collect();
+        let ints: Vec<i64> = bytes
+            .chunks_exact(8)
+            .map(|c| i64::from_le_bytes(c.try_into().unwrap()))
+            .collect();
         (name, ArrayD::zeros(IxDyn(&shape)), ints)
     } else {
-        let v: Vec<f32> = bytes.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
-        (name, Array::from_shape_vec(IxDyn(&shape), v).unwrap(), vec![])
+        let v: Vec<f32> = bytes
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        (
+            name,
+            Array::from_shape_vec(IxDyn(&shape), v).unwrap(),
+            vec![],
+        )
     }
 }
 
 fn max_diff(a: &ArrayD<f32>, b: &ArrayD<f32>) -> f32 {
     assert_eq!(a.shape(), b.shape());
-    a.iter().zip(b.iter()).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+    a.iter()
+        .zip(b.iter())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
 }
 
 #[test]
@@ -35,16 +57,32 @@ fn outputs_match_python_onnxruntime() {
         return;
     };
     let pkg = ModelPackage::load(&dir, 1, 1, None).unwrap();
-    let manifest: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("reference/manifest.json")).unwrap()).unwrap();
+    let manifest: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("reference/manifest.json")).unwrap(),
+    )
+    .unwrap();
     let mut worst = 0.0f32;
     for entry in manifest.as_array().unwrap() {
-        let inputs: Vec<_> = entry["inputs"].as_array().unwrap().iter().map(|e| read_bin(&dir, e)).collect();
-        let outputs: Vec<_> = entry["outputs"].as_array().unwrap().iter().map(|e| read_bin(&dir, e)).collect();
+        let inputs: Vec<_> = entry["inputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| read_bin(&dir, e))
+            .collect();
+        let outputs: Vec<_> = entry["outputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| read_bin(&dir, e))
+            .collect();
         let get = |n: &str| inputs.iter().find(|i| i.0 == n).unwrap();
         let ours: Vec<(String, ArrayD<f32>)> = match entry["model"].as_str().unwrap() {
             "position.onnx" => {
                 let o = get("observation").1.clone().into_dimensionality().unwrap();
-                vec![("affordance".into(), pkg.position(o.view()).unwrap().into_dyn())]
+                vec![(
+                    "affordance".into(),
+                    pkg.position(o.view()).unwrap().into_dyn(),
+                )]
             }
             "direction_encoder.onnx" => {
                 let o = get("observation").1.clone().into_dimensionality().unwrap();
@@ -52,20 +90,38 @@ fn outputs_match_python_onnxruntime() {
                 let px = get("pixel").2.clone();
                 let p = ndarray::Array2::from_shape_vec((px.len() / 2, 2), px).unwrap();
                 let (d, a) = pkg.encode(o.view(), r.view(), p.view()).unwrap();
-                vec![("dist_embedding".into(), d.into_dyn()), ("aot_embedding".into(), a.into_dyn())]
+                vec![
+                    ("dist_embedding".into(), d.into_dyn()),
+                    ("aot_embedding".into(), a.into_dyn()),
+                ]
             }
             _ => {
-                let d = get("dist_embedding").1.clone().into_dimensionality().unwrap();
-                let a = get("aot_embedding").1.clone().into_dimensionality().unwrap();
+                let d = get("dist_embedding")
+                    .1
+                    .clone()
+                    .into_dimensionality()
+                    .unwrap();
+                let a = get("aot_embedding")
+                    .1
+                    .clone()
+                    .into_dimensionality()
+                    .unwrap();
                 let dir3 = get("direction").1.clone().into_dimensionality().unwrap();
                 let s = pkg.decode(d.view(), a.view(), dir3.view()).unwrap();
-                vec![("distance".into(), s.distance.into_dyn()), ("aot_probs".into(), s.aot_probs.into_dyn())]
+                vec![
+                    ("distance".into(), s.distance.into_dyn()),
+                    ("aot_probs".into(), s.aot_probs.into_dyn()),
+                ]
             }
         };
         for (name, theirs, _) in &outputs {
             let mine = &ours.iter().find(|o| &o.0 == name).unwrap().1;
             let d = max_diff(mine, theirs);
-            assert!(d < 1e-4, "{}: `{name}` differs from Python onnxruntime by {d}", entry["model"]);
+            assert!(
+                d < 1e-4,
+                "{}: `{name}` differs from Python onnxruntime by {d}",
+                entry["model"]
+            );
             worst = worst.max(d);
         }
     }
@@ -77,20 +133,35 @@ fn mismatches_are_reported_in_one_line() {
     let Some(dir) = fixture() else { return };
     let tmp = tempfile::tempdir().unwrap();
     let copy = |edit: &dyn Fn(&mut serde_json::Value)| {
-        for f in ["position.onnx", "direction_encoder.onnx", "direction_decoder.onnx"] {
+        for f in [
+            "position.onnx",
+            "direction_encoder.onnx",
+            "direction_decoder.onnx",
+        ] {
             std::fs::copy(dir.join(f), tmp.path().join(f)).unwrap();
         }
-        let mut meta: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap()).unwrap();
+        let mut meta: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap())
+                .unwrap();
         edit(&mut meta);
         std::fs::write(tmp.path().join("model.json"), meta.to_string()).unwrap();
-        ModelPackage::load(tmp.path(), 1, 1, None).err().map(|e| e.to_string()).unwrap_or_default()
+        ModelPackage::load(tmp.path(), 1, 1, None)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default()
     };
     let e = copy(&|m| m["version"] = 99.into());
     assert!(e.contains("`version` is 99"), "{e}");
     let e = copy(&|m| m["input"]["width"] = 65.into());
-    assert!(e.contains("input `observation`: expected shape [-1, 48, 65, 10], found [-1, 48, 64, 10]"), "{e}");
+    assert!(
+        e.contains("input `observation`: expected shape [-1, 48, 65, 10], found [-1, 48, 64, 10]"),
+        "{e}"
+    );
     let e = copy(&|m| m["embedding"] = 7.into());
-    assert!(e.contains("`dist_embedding`: expected shape [-1, 7], found [-1, 16]"), "{e}");
+    assert!(
+        e.contains("`dist_embedding`: expected shape [-1, 7], found [-1, 16]"),
+        "{e}"
+    );
     let e = copy(&|m| m["files"]["position"] = "nope.onnx".into());
     assert!(e.contains("nope.onnx: missing"), "{e}");
     assert!(!e.contains('\n'));
@@ -98,5 +169,8 @@ fn mismatches_are_reported_in_one_line() {
     let pkg = ModelPackage::load(&dir, 1, 1, None).unwrap();
     let wrong = ndarray::Array4::<f32>::zeros((1, 10, 10, 10));
     let e = pkg.position(wrong.view()).unwrap_err().to_string();
-    assert!(e.contains("observation has shape [1, 10, 10, 10], the model takes [batch, 48, 64, 10]"), "{e}");
+    assert!(
+        e.contains("observation has shape [1, 10, 10, 10], the model takes [batch, 48, 64, 10]"),
+        "{e}"
+    );
 }

@@ -1,0 +1,87 @@
+//! Policies by name: `random`, `oracle`, or a learned package (`umpnet` with
+//! --model DIR, or `NAME=DIR` for any package, e.g. a baseline).
+use crate::usage;
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use umpnet_eval::bench::PolicyFactory;
+use umpnet_eval::learned::LearnedPolicy;
+
+/// The shipped model, looked for beside the working directory and the executable.
+pub fn default_model() -> PathBuf {
+    let rel = Path::new("models").join("umpnet-small");
+    let exe = std::env::current_exe().ok();
+    let mut candidates: Vec<PathBuf> = vec![rel.clone()];
+    if let Some(e) = exe {
+        candidates.extend(e.ancestors().map(|a| a.join(&rel)));
+    }
+    candidates
+        .into_iter()
+        .find(|p| p.join("model.json").is_file())
+        .unwrap_or(rel)
+}
+
+pub struct Resolved {
+    pub factories: Vec<(String, PolicyFactory)>,
+    /// The learned packages' input resolution, when one is used.
+    pub resolution: Option<(u32, u32)>,
+}
+
+pub fn resolve(specs: &[String], model: Option<&Path>, sessions: usize) -> Result<Resolved> {
+    let mut factories: Vec<(String, PolicyFactory)> = Vec::new();
+    let mut resolution: Option<(u32, u32)> = None;
+    for spec in specs {
+        let (name, dir) = match spec.split_once('=') {
+            Some((n, d)) => (n.to_string(), Some(PathBuf::from(d))),
+            None if spec == "umpnet" => (
+                spec.clone(),
+                Some(model.map(Path::to_path_buf).unwrap_or_else(default_model)),
+            ),
+            None => (spec.clone(), None),
+        };
+        match dir {
+            None => {
+                if umpnet_eval::scripted_policy(&name).is_none() {
+                    return Err(usage(format!(
+                        "policy `{name}`: unknown; expected random, oracle, umpnet or NAME=MODEL_DIR"
+                    )));
+                }
+                let n = name.clone();
+                let f: PolicyFactory = Arc::new(move || {
+                    umpnet_eval::scripted_policy(&n).ok_or_else(|| {
+                        umpnet_eval::EvalError::Episode(format!("unknown policy {n}"))
+                    })
+                });
+                factories.push((name, f));
+            }
+            Some(dir) => {
+                if !dir.join("model.json").is_file() {
+                    return Err(usage(format!(
+                        "policy `{name}`: {} is not a model package (no model.json)",
+                        dir.display()
+                    )));
+                }
+                let pkg = LearnedPolicy::load(&name, &dir, sessions)
+                    .with_context(|| format!("loading policy `{name}`"))?;
+                let r = (pkg.meta.input.height as u32, pkg.meta.input.width as u32);
+                if let Some(prev) = resolution.filter(|p| *p != r) {
+                    return Err(usage(format!(
+                        "policy `{name}` takes {}x{} images but another takes {}x{}",
+                        r.0, r.1, prev.0, prev.1
+                    )));
+                }
+                resolution = Some(r);
+                let n = name.clone();
+                let f: PolicyFactory = Arc::new(move || {
+                    Ok(Box::new(LearnedPolicy::new(&n, pkg.clone()))
+                        as Box<dyn umpnet_eval::Policy>)
+                });
+                factories.push((name, f));
+            }
+        }
+    }
+    Ok(Resolved {
+        factories,
+        resolution,
+    })
+}

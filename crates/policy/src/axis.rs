@@ -1,0 +1,147 @@
+//! Joint-axis inference from the executed directions (paper, "Inferring
+//! objects' articulation structure"): prismatic = mean direction; revolute =
+//! the normal of the common action plane (L1 fit), positioned by voting.
+use nalgebra::{Matrix3, Vector3};
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[serde(tag = "type", rename_all = "lowercase")]
+pub enum JointEstimate {
+    Prismatic { axis: [f32; 3] },
+    Revolute { axis: [f32; 3], point: [f32; 3] },
+}
+
+/// Angle in degrees between two axes, ignoring their sign.
+pub fn axis_angle_deg(a: &Vector3<f32>, b: &Vector3<f32>) -> f32 {
+    (a.normalize().dot(&b.normalize()).abs().clamp(0.0, 1.0))
+        .acos()
+        .to_degrees()
+}
+
+/// min over unit n of sum |n . a_t|, by iteratively reweighted least squares
+/// starting from the least-squares plane.
+pub fn l1_plane_normal(directions: &[Vector3<f32>]) -> Option<Vector3<f32>> {
+    let mut w = vec![1.0f32; directions.len()];
+    let mut n = None;
+    for _ in 0..30 {
+        let mut m = Matrix3::zeros();
+        for (d, wi) in directions.iter().zip(&w) {
+            m += *wi * d * d.transpose();
+        }
+        let eig = m.symmetric_eigen();
+        let (k, _) = eig
+            .eigenvalues
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))?;
+        let cand: Vector3<f32> = eig.eigenvectors.column(k).into_owned().normalize();
+        for (d, wi) in directions.iter().zip(w.iter_mut()) {
+            *wi = 1.0 / cand.dot(d).abs().max(1e-3);
+        }
+        n = Some(cand);
+    }
+    n
+}
+
+/// Infers the joint from executed unit `directions` and the gripper positions
+/// `points` where each was executed. Returns None with fewer than 2 actions.
+pub fn infer_joint(directions: &[Vector3<f32>], points: &[Vector3<f32>]) -> Option<JointEstimate> {
+    if directions.len() < 2 || directions.len() != points.len() {
+        return None;
+    }
+    // Directions of a prismatic joint are (anti)parallel: align signs to the first.
+    let first = directions[0];
+    let aligned: Vec<Vector3<f32>> = directions
+        .iter()
+        .map(|d| if d.dot(&first) < 0.0 { -d } else { *d })
+        .collect();
+    let mean: Vector3<f32> = aligned.iter().sum::<Vector3<f32>>() / aligned.len() as f32;
+    if mean.norm() > 0.97 {
+        let a = mean.normalize();
+        return Some(JointEstimate::Prismatic {
+            axis: [a.x, a.y, a.z],
+        });
+    }
+    let n = l1_plane_normal(directions)?;
+    // Each action is tangent to a circle about the axis: the axis meets the
+    // plane on the line through the action point, perpendicular to the action.
+    // Intersect consecutive lines (in the plane) and take the median.
+    let project = |p: &Vector3<f32>| p - n * n.dot(p);
+    let lines: Vec<(Vector3<f32>, Vector3<f32>)> = points
+        .iter()
+        .zip(directions)
+        .map(|(p, d)| (project(p), n.cross(&project(d)).normalize()))
+        .collect();
+    let mut votes: Vec<Vector3<f32>> = Vec::new();
+    for i in 0..lines.len() {
+        for j in i + 1..lines.len() {
+            let ((p1, u1), (p2, u2)) = (lines[i], lines[j]);
+            // p1 + s u1 = p2 + t u2, least squares in 3-D (all vectors in the plane).
+            let m = nalgebra::Matrix3x2::from_columns(&[u1, -u2]);
+            let Some(st) = (m.transpose() * m)
+                .try_inverse()
+                .map(|inv| inv * m.transpose() * (p2 - p1))
+            else {
+                continue;
+            };
+            let x = p1 + u1 * st[0];
+            if x.iter().all(|v| v.is_finite()) && (x - p1).norm() < 5.0 {
+                votes.push(x);
+            }
+        }
+    }
+    if votes.is_empty() {
+        return None;
+    }
+    let median = |k: usize| {
+        let mut v: Vec<f32> = votes.iter().map(|x| x[k]).collect();
+        v.sort_by(f32::total_cmp);
+        v[v.len() / 2]
+    };
+    let c = Vector3::new(median(0), median(1), median(2)) + n * n.dot(&points[0]);
+    Some(JointEstimate::Revolute {
+        axis: [n.x, n.y, n.z],
+        point: [c.x, c.y, c.z],
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recovers_a_door_hinge_from_tangent_pulls() {
+        let axis = Vector3::new(0.1, 0.2, 1.0).normalize();
+        let centre = Vector3::new(0.3, -0.4, 0.5);
+        let u = axis.cross(&Vector3::x()).normalize();
+        let v = axis.cross(&u);
+        let (mut dirs, mut pts) = (Vec::new(), Vec::new());
+        for k in 0..6 {
+            let a = k as f32 * 0.25;
+            let p = centre + 0.8 * (u * a.cos() + v * a.sin()) + axis * 0.1;
+            let t = axis.cross(&(p - centre)).normalize();
+            dirs.push(t);
+            pts.push(p);
+        }
+        let Some(JointEstimate::Revolute { axis: a, point }) = infer_joint(&dirs, &pts) else {
+            panic!("not revolute")
+        };
+        assert!(axis_angle_deg(&Vector3::from(a), &axis) < 1.0);
+        let d = Vector3::from(point) - centre;
+        assert!(
+            (d - axis * axis.dot(&d)).norm() < 0.01,
+            "axis position off by {}",
+            d.norm()
+        );
+    }
+
+    #[test]
+    fn prismatic_is_the_mean_direction() {
+        let d = Vector3::new(0.0, -1.0, 0.1).normalize();
+        let dirs = vec![d, d, -d, d];
+        let pts = vec![Vector3::zeros(); 4];
+        let Some(JointEstimate::Prismatic { axis }) = infer_joint(&dirs, &pts) else {
+            panic!()
+        };
+        assert!(axis_angle_deg(&Vector3::from(axis), &d) < 0.1);
+    }
+}

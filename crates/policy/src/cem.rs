@@ -1,0 +1,256 @@
+//! The paper's direction sampler: 64 candidates on a Fibonacci sphere under a
+//! random rotation, scored; a second round resampled with probability
+//! proportional to exp(20 x score) plus noise, re-scored; then the pick.
+use nalgebra::{Rotation3, Unit, Vector3};
+use rand::Rng;
+use rand_distr::StandardNormal;
+
+pub const CANDIDATES: usize = 64;
+/// Temperature of the resampling weights (paper: exp(20 x score)).
+pub const RESAMPLE_SHARPNESS: f32 = 20.0;
+/// Standard deviation of the noise added to resampled directions.
+pub const RESAMPLE_NOISE: f32 = 0.1;
+/// Directions closer than this angle to a banned one are not proposed.
+pub const BAN_COS: f32 = 0.94; // about 20 degrees
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// Largest predicted distance among directions predicted to move forward (AoT +1).
+    Explore,
+    /// Largest predicted distance among directions predicted to move back (AoT -1); stop when none.
+    Goal,
+}
+
+/// What the networks say about one candidate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Score {
+    pub distance: f32,
+    /// argmax class: -1, 0 or +1.
+    pub aot: i8,
+}
+
+#[derive(Clone, Debug)]
+pub struct CemResult {
+    /// None: goal mode found no direction predicted to move toward the goal.
+    pub direction: Option<Vector3<f32>>,
+    pub candidates: Vec<Vector3<f32>>,
+    pub scores: Vec<Score>,
+}
+
+pub fn fibonacci_sphere(n: usize) -> Vec<Vector3<f32>> {
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let t = golden * i as f32;
+            Vector3::new(r * t.cos(), r * t.sin(), z)
+        })
+        .collect()
+}
+
+pub fn random_rotation(rng: &mut impl Rng) -> Rotation3<f32> {
+    loop {
+        let v = Vector3::new(
+            rng.sample::<f32, _>(StandardNormal),
+            rng.sample(StandardNormal),
+            rng.sample(StandardNormal),
+        );
+        if let Some(axis) = Unit::try_new(v, 1e-6) {
+            return Rotation3::from_axis_angle(&axis, rng.random_range(0.0..std::f32::consts::TAU));
+        }
+    }
+}
+
+fn is_banned(d: &Vector3<f32>, banned: &[Vector3<f32>]) -> bool {
+    banned.iter().any(|b| d.dot(b) > BAN_COS)
+}
+
+/// The value CEM concentrates on: predicted distance where the predicted AoT
+/// is the wanted one, zero elsewhere.
+pub fn objective(s: &Score, mode: Mode) -> f32 {
+    let wanted = if mode == Mode::Explore { 1 } else { -1 };
+    if s.aot == wanted {
+        s.distance.max(0.0)
+    } else {
+        0.0
+    }
+}
+
+/// The first round's candidates for one decision.
+pub fn first_round(rng: &mut impl Rng, banned: &[Vector3<f32>]) -> Vec<Vector3<f32>> {
+    let rot = random_rotation(rng);
+    let all: Vec<Vector3<f32>> = fibonacci_sphere(CANDIDATES)
+        .into_iter()
+        .map(|d| rot * d)
+        .collect();
+    let kept: Vec<Vector3<f32>> = all
+        .iter()
+        .copied()
+        .filter(|d| !is_banned(d, banned))
+        .collect();
+    if kept.is_empty() { all } else { kept }
+}
+
+/// The second round: resampled around the good ones of the first.
+pub fn second_round(
+    rng: &mut impl Rng,
+    first: &[Vector3<f32>],
+    scores: &[Score],
+    mode: Mode,
+    banned: &[Vector3<f32>],
+) -> Vec<Vector3<f32>> {
+    let obj: Vec<f32> = scores.iter().map(|s| objective(s, mode)).collect();
+    let top = obj.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let weights: Vec<f32> = obj
+        .iter()
+        .map(|o| (RESAMPLE_SHARPNESS * (o - top)).exp())
+        .collect();
+    let total: f32 = weights.iter().sum();
+    let mut out = Vec::with_capacity(CANDIDATES);
+    let mut tries = 0;
+    while out.len() < CANDIDATES && tries < CANDIDATES * 20 {
+        tries += 1;
+        let mut u = rng.random_range(0.0..total.max(f32::MIN_POSITIVE));
+        let mut k = 0;
+        while k + 1 < weights.len() && u >= weights[k] {
+            u -= weights[k];
+            k += 1;
+        }
+        let noise = Vector3::new(
+            rng.sample::<f32, _>(StandardNormal),
+            rng.sample(StandardNormal),
+            rng.sample(StandardNormal),
+        ) * RESAMPLE_NOISE;
+        let Some(d) = (first[k] + noise).try_normalize(1e-6) else {
+            continue;
+        };
+        if !is_banned(&d, banned) {
+            out.push(d);
+        }
+    }
+    out
+}
+
+/// Picks from all scored candidates (both rounds).
+pub fn select(candidates: &[Vector3<f32>], scores: &[Score], mode: Mode) -> Option<Vector3<f32>> {
+    let wanted = if mode == Mode::Explore { 1 } else { -1 };
+    let best = |filter: &dyn Fn(&Score) -> bool| {
+        candidates
+            .iter()
+            .zip(scores)
+            .filter(|(_, s)| filter(s))
+            .max_by(|a, b| a.1.distance.total_cmp(&b.1.distance))
+            .map(|(d, _)| *d)
+    };
+    match mode {
+        Mode::Goal => best(&|s| s.aot == wanted),
+        // Exploration never stops: with no forward candidate, the largest distance.
+        Mode::Explore => best(&|s| s.aot == wanted).or_else(|| best(&|_| true)),
+    }
+}
+
+/// Both rounds for one decision with a scoring function (used by tests and
+/// single-environment callers; the batched policy drives the rounds itself).
+pub fn cem(
+    rng: &mut impl Rng,
+    mode: Mode,
+    banned: &[Vector3<f32>],
+    score: &mut dyn FnMut(&[Vector3<f32>]) -> Vec<Score>,
+) -> CemResult {
+    let first = first_round(rng, banned);
+    let s1 = score(&first);
+    let second = second_round(rng, &first, &s1, mode, banned);
+    let s2 = score(&second);
+    let candidates: Vec<Vector3<f32>> = first.into_iter().chain(second).collect();
+    let scores: Vec<Score> = s1.into_iter().chain(s2).collect();
+    CemResult {
+        direction: select(&candidates, &scores, mode),
+        candidates,
+        scores,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    fn peak(target: Vector3<f32>) -> impl FnMut(&[Vector3<f32>]) -> Vec<Score> {
+        move |ds: &[Vector3<f32>]| {
+            ds.iter()
+                .map(|d| {
+                    let c = d.dot(&target);
+                    Score {
+                        distance: 0.18 * c.max(0.0),
+                        aot: if c > 0.2 {
+                            1
+                        } else if c < -0.2 {
+                            -1
+                        } else {
+                            0
+                        },
+                    }
+                })
+                .collect()
+        }
+    }
+
+    #[test]
+    fn concentrates_near_the_maximum() {
+        let target = Vector3::new(0.3, -0.8, 0.5).normalize();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let mut worst: f32 = 1.0;
+        for _ in 0..50 {
+            let r = cem(&mut rng, Mode::Explore, &[], &mut peak(target));
+            let d = r.direction.unwrap();
+            worst = worst.min(d.dot(&target));
+            // The second round sits closer to the peak than the uniform first round.
+            let mean =
+                |s: &[Vector3<f32>]| s.iter().map(|d| d.dot(&target)).sum::<f32>() / s.len() as f32;
+            assert!(mean(&r.candidates[CANDIDATES..]) > mean(&r.candidates[..CANDIDATES]) + 0.5);
+        }
+        assert!(
+            worst > 0.97,
+            "best direction only {:.1} degrees from the peak",
+            worst.acos().to_degrees()
+        );
+    }
+
+    #[test]
+    fn honours_bans() {
+        let target = Vector3::new(0.0, 0.0, 1.0);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        let banned = [target];
+        for _ in 0..20 {
+            let r = cem(&mut rng, Mode::Explore, &banned, &mut peak(target));
+            assert!(r.candidates.iter().all(|d| d.dot(&target) <= BAN_COS));
+            assert!(r.direction.unwrap().dot(&target) <= BAN_COS);
+        }
+    }
+
+    #[test]
+    fn goal_mode_stops_when_no_aot_is_negative() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut all_forward = |ds: &[Vector3<f32>]| {
+            ds.iter()
+                .map(|_| Score {
+                    distance: 0.2,
+                    aot: 1,
+                })
+                .collect()
+        };
+        assert!(
+            cem(&mut rng, Mode::Goal, &[], &mut all_forward)
+                .direction
+                .is_none()
+        );
+        let target = Vector3::new(1.0, 0.0, 0.0);
+        let r = cem(&mut rng, Mode::Goal, &[], &mut peak(target));
+        assert!(
+            r.direction.unwrap().dot(&target) < -0.2,
+            "goal mode picks a negative-AoT direction"
+        );
+    }
+}

@@ -1,0 +1,203 @@
+//! The UMPNet policy on observation tensors: position from the affordance
+//! map, directions from batched two-round CEM over the direction networks.
+use crate::cem::{CemResult, Mode, Score, first_round, second_round, select};
+use crate::error::{PolicyError, Result};
+use crate::observation::CHANNELS;
+use crate::package::ModelPackage;
+use nalgebra::Vector3;
+use ndarray::{Array2, Array4, ArrayView3, Axis};
+use rand_chacha::ChaCha8Rng;
+use std::sync::Arc;
+
+/// Goal task: pixels whose world position differs by more than this between
+/// the current and the goal observation are where the change must happen.
+pub const GOAL_DIFF_M: f32 = 0.02;
+
+/// One environment's direction decision.
+pub struct DecisionInput<'a> {
+    pub observation: ArrayView3<'a, f32>,
+    pub reference: ArrayView3<'a, f32>,
+    /// Where the gripper holds the object, in image coordinates (row, col).
+    pub pixel: (usize, usize),
+    /// Directions that just failed to move anything.
+    pub banned: &'a [Vector3<f32>],
+    pub mode: Mode,
+}
+
+#[derive(Clone, Debug)]
+pub struct PositionChoice {
+    pub pixel: (usize, usize),
+    pub affordance: Array2<f32>,
+}
+
+#[derive(Clone)]
+pub struct UmpnetPolicy {
+    pub package: Arc<ModelPackage>,
+}
+
+impl UmpnetPolicy {
+    pub fn new(package: Arc<ModelPackage>) -> Self {
+        Self { package }
+    }
+
+    pub fn resolution(&self) -> (usize, usize) {
+        (
+            self.package.meta.input.height,
+            self.package.meta.input.width,
+        )
+    }
+
+    /// Best pixel of the affordance map among pixels with depth; with a goal
+    /// observation, only where current and goal differ (the paper's mask).
+    pub fn position(
+        &self,
+        observation: ArrayView3<f32>,
+        goal: Option<ArrayView3<f32>>,
+    ) -> Result<PositionChoice> {
+        let obs4 = observation.insert_axis(Axis(0));
+        let aff = self.package.position(obs4)?.index_axis_move(Axis(0), 0);
+        let (h, w) = (aff.shape()[0], aff.shape()[1]);
+        let allowed = |r: usize, c: usize| -> bool {
+            if observation[[r, c, 9]] <= 0.0 {
+                return false;
+            }
+            match &goal {
+                Some(g) => {
+                    let d: f32 = (0..3)
+                        .map(|k| (observation[[r, c, k]] - g[[r, c, k]]).powi(2))
+                        .sum::<f32>()
+                        .sqrt();
+                    d > GOAL_DIFF_M || g[[r, c, 9]] <= 0.0
+                }
+                None => true,
+            }
+        };
+        let mut best: Option<(f32, (usize, usize))> = None;
+        let mut fallback: Option<(f32, (usize, usize))> = None;
+        for r in 0..h {
+            for c in 0..w {
+                let a = aff[[r, c]];
+                if observation[[r, c, 9]] > 0.0 && fallback.is_none_or(|(b, _)| a > b) {
+                    fallback = Some((a, (r, c)));
+                }
+                if allowed(r, c) && best.is_none_or(|(b, _)| a > b) {
+                    best = Some((a, (r, c)));
+                }
+            }
+        }
+        let (_, pixel) = best
+            .or(fallback)
+            .ok_or_else(|| PolicyError::Input("no pixel with depth in the observation".into()))?;
+        Ok(PositionChoice {
+            pixel,
+            affordance: aff,
+        })
+    }
+
+    /// Decides directions for several environments: one encoder call for all,
+    /// one decoder call per CEM round for all candidates of all environments.
+    pub fn directions(
+        &self,
+        inputs: &[DecisionInput],
+        rngs: &mut [ChaCha8Rng],
+    ) -> Result<Vec<CemResult>> {
+        if inputs.len() != rngs.len() {
+            return Err(PolicyError::Input(format!(
+                "{} inputs but {} random generators",
+                inputs.len(),
+                rngs.len()
+            )));
+        }
+        if inputs.is_empty() {
+            return Ok(Vec::new());
+        }
+        let (h, w) = self.resolution();
+        let b = inputs.len();
+        let mut obs = Array4::<f32>::zeros((b, h, w, CHANNELS));
+        let mut refs = Array4::<f32>::zeros((b, h, w, CHANNELS));
+        let mut pix = Array2::<i64>::zeros((b, 2));
+        for (i, inp) in inputs.iter().enumerate() {
+            if inp.observation.shape() != [h, w, CHANNELS]
+                || inp.reference.shape() != [h, w, CHANNELS]
+            {
+                return Err(PolicyError::Input(format!(
+                    "observation {:?} / reference {:?}: the model takes [{h}, {w}, {CHANNELS}]",
+                    inp.observation.shape(),
+                    inp.reference.shape()
+                )));
+            }
+            obs.index_axis_mut(Axis(0), i).assign(&inp.observation);
+            refs.index_axis_mut(Axis(0), i).assign(&inp.reference);
+            pix[[i, 0]] = inp.pixel.0.min(h - 1) as i64;
+            pix[[i, 1]] = inp.pixel.1.min(w - 1) as i64;
+        }
+        let (de, ae) = self.package.encode(obs.view(), refs.view(), pix.view())?;
+        let first: Vec<Vec<Vector3<f32>>> = inputs
+            .iter()
+            .zip(rngs.iter_mut())
+            .map(|(inp, rng)| first_round(rng, inp.banned))
+            .collect();
+        let s1 = self.score(&de, &ae, &first)?;
+        let second: Vec<Vec<Vector3<f32>>> = inputs
+            .iter()
+            .zip(rngs.iter_mut())
+            .enumerate()
+            .map(|(i, (inp, rng))| second_round(rng, &first[i], &s1[i], inp.mode, inp.banned))
+            .collect();
+        let s2 = self.score(&de, &ae, &second)?;
+        Ok((0..b)
+            .map(|i| {
+                let candidates: Vec<Vector3<f32>> =
+                    first[i].iter().chain(&second[i]).copied().collect();
+                let scores: Vec<Score> = s1[i].iter().chain(&s2[i]).copied().collect();
+                CemResult {
+                    direction: select(&candidates, &scores, inputs[i].mode),
+                    candidates,
+                    scores,
+                }
+            })
+            .collect())
+    }
+
+    /// Scores each environment's candidates in one decoder call.
+    fn score(
+        &self,
+        de: &Array2<f32>,
+        ae: &Array2<f32>,
+        cands: &[Vec<Vector3<f32>>],
+    ) -> Result<Vec<Vec<Score>>> {
+        let n: usize = cands.iter().map(Vec::len).sum();
+        let e = de.shape()[1];
+        let mut d = Array2::<f32>::zeros((n, e));
+        let mut a = Array2::<f32>::zeros((n, e));
+        let mut dirs = Array2::<f32>::zeros((n, 3));
+        let mut row = 0;
+        for (i, c) in cands.iter().enumerate() {
+            for v in c {
+                d.row_mut(row).assign(&de.row(i));
+                a.row_mut(row).assign(&ae.row(i));
+                dirs.row_mut(row).assign(&ndarray::arr1(&[v.x, v.y, v.z]));
+                row += 1;
+            }
+        }
+        let s = self.package.decode(d.view(), a.view(), dirs.view())?;
+        let mut out = Vec::with_capacity(cands.len());
+        let mut row = 0;
+        for c in cands {
+            out.push(
+                (0..c.len())
+                    .map(|k| {
+                        let p = s.aot_probs.row(row + k);
+                        let cls = (0..3).max_by(|x, y| p[*x].total_cmp(&p[*y])).unwrap_or(1);
+                        Score {
+                            distance: s.distance[row + k],
+                            aot: cls as i8 - 1,
+                        }
+                    })
+                    .collect(),
+            );
+            row += c.len();
+        }
+        Ok(out)
+    }
+}
