@@ -4,13 +4,24 @@ UMPNET := target/release/umpnet
 PY := .venv/bin/python
 export XDG_RUNTIME_DIR ?= /tmp
 
-.PHONY: install build demo test lint test-rust test-python clean
+FIXTURE := $(CURDIR)/target/fixture
+export UMPNET_FIXTURE := $(FIXTURE)
+
+.PHONY: install build py fixture demo test lint test-rust test-python clean
 
 install:
 	@bash scripts/install.sh
 
 build: install
 	cargo build --release
+
+# The Python module `umpnet` (Rust, through maturin) into .venv.
+py: install
+	cd crates/py && ../../.venv/bin/maturin develop --release -q
+
+# A small untrained model package with Python onnxruntime's outputs: the runtime's contract test.
+fixture: install
+	cd train_py && ../.venv/bin/python -m umpnet_train.fixture $(FIXTURE)
 
 demo: build
 	$(UMPNET) objects generate --out data/objects --per-category 20
@@ -23,14 +34,15 @@ demo: build
 
 lint: install
 	cargo fmt --all --check
-	cargo clippy --release --all-targets -- -D warnings
-	.venv/bin/ruff check tests train_py
+	cargo clippy --release --workspace --all-targets -- -D warnings
+	.venv/bin/ruff check tests train_py crates/py
+	.venv/bin/ruff format --check tests train_py crates/py
 
-test-rust: install
+test-rust: fixture
 	UMPNET_REQUIRE_WGPU=1 cargo test --release
 
-test-python: build
-	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests
+test-python: build py fixture
+	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests crates/py/tests
 
 test: lint test-rust test-python
 

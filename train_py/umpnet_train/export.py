@@ -94,23 +94,43 @@ def export_model(model: UMPNet, cfg: Config, out: Path, provenance: dict, evalua
     direction = torch.nn.functional.normalize(torch.randn(5, 3, generator=g), dim=1)
     dec_out = decoder_outputs(cfg.variant)
     with torch.no_grad():
-        _export(PositionExport(model.position), (obs,), out / "position.onnx", ["observation"], ["affordance"],
-                {"observation": {0: "batch"}, "affordance": {0: "batch"}})
-        _export(EncoderExport(model.encoder), (obs, ref, pixel), out / "direction_encoder.onnx",
-                ["observation", "reference", "pixel"], ["dist_embedding", "aot_embedding"],
-                {k: {0: "batch"} for k in ["observation", "reference", "pixel", "dist_embedding", "aot_embedding"]})
-        _export(DecoderExport(model.decoder, cfg.variant), (de, ae, direction), out / "direction_decoder.onnx",
-                ["dist_embedding", "aot_embedding", "direction"], dec_out,
-                {k: {0: "candidates"} for k in ["dist_embedding", "aot_embedding", "direction", *dec_out]})
+        _export(
+            PositionExport(model.position),
+            (obs,),
+            out / "position.onnx",
+            ["observation"],
+            ["affordance"],
+            {"observation": {0: "batch"}, "affordance": {0: "batch"}},
+        )
+        _export(
+            EncoderExport(model.encoder),
+            (obs, ref, pixel),
+            out / "direction_encoder.onnx",
+            ["observation", "reference", "pixel"],
+            ["dist_embedding", "aot_embedding"],
+            {k: {0: "batch"} for k in ["observation", "reference", "pixel", "dist_embedding", "aot_embedding"]},
+        )
+        _export(
+            DecoderExport(model.decoder, cfg.variant),
+            (de, ae, direction),
+            out / "direction_decoder.onnx",
+            ["dist_embedding", "aot_embedding", "direction"],
+            dec_out,
+            {k: {0: "candidates"} for k in ["dist_embedding", "aot_embedding", "direction", *dec_out]},
+        )
         model.eval()
         expected = {
             "position.onnx": ([PositionExport(model.position)(obs)], {"observation": obs}),
-            "direction_encoder.onnx": (list(EncoderExport(model.encoder)(obs, ref, pixel)),
-                                       {"observation": obs, "reference": ref, "pixel": pixel}),
+            "direction_encoder.onnx": (
+                list(EncoderExport(model.encoder)(obs, ref, pixel)),
+                {"observation": obs, "reference": ref, "pixel": pixel},
+            ),
         }
         dec = DecoderExport(model.decoder, cfg.variant)(de, ae, direction)
-        expected["direction_decoder.onnx"] = (list(dec) if isinstance(dec, tuple) else [dec],
-                                              {"dist_embedding": de, "aot_embedding": ae, "direction": direction})
+        expected["direction_decoder.onnx"] = (
+            list(dec) if isinstance(dec, tuple) else [dec],
+            {"dist_embedding": de, "aot_embedding": ae, "direction": direction},
+        )
     worst = 0.0
     for name, (torch_out, feeds) in expected.items():
         sess = ort.InferenceSession(str(out / name), providers=["CPUExecutionProvider"])

@@ -19,6 +19,10 @@ from .export import export_model
 from .models import CHANNELS, OBS_MEAN, UMPNet
 
 
+def unit_rows(d: np.ndarray) -> np.ndarray:
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
 def main(argv=None) -> int:
     out = Path((argv or sys.argv[1:])[0])
     torch.manual_seed(0)
@@ -37,7 +41,7 @@ def main(argv=None) -> int:
         "direction_decoder.onnx": {
             "dist_embedding": rng.normal(size=(7, e)).astype(np.float32),
             "aot_embedding": rng.normal(size=(7, e)).astype(np.float32),
-            "direction": (lambda d: d / np.linalg.norm(d, axis=1, keepdims=True))(rng.normal(size=(7, 3))).astype(np.float32),
+            "direction": unit_rows(rng.normal(size=(7, 3))).astype(np.float32),
         },
     }
     manifest = []

@@ -7,6 +7,8 @@ inside the networks, so exported ONNX graphs take raw observations.
 
 from __future__ import annotations
 
+import itertools
+
 import torch
 from torch import nn
 from torch.nn import functional as F
@@ -46,9 +48,9 @@ class UNet(nn.Module):
     def __init__(self, cin: int, widths: tuple[int, ...], cout: int):
         super().__init__()
         self.down = nn.ModuleList([block(cin, widths[0])])
-        for a, b in zip(widths[:-1], widths[1:]):
+        for a, b in itertools.pairwise(widths):
             self.down.append(block(a, b, stride=2))
-        self.up = nn.ModuleList([block(b + a, a) for a, b in zip(widths[:-1], widths[1:])])
+        self.up = nn.ModuleList([block(b + a, a) for a, b in itertools.pairwise(widths)])
         self.head = nn.Conv2d(widths[0], cout, 1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -112,7 +114,9 @@ class DirectionDecoder(nn.Module):
     def __init__(self, embedding: int, action_embedding: int, variant: str = "umpnet"):
         super().__init__()
         self.variant = variant
-        self.action = nn.Sequential(nn.Linear(3, action_embedding), nn.ReLU(), nn.Linear(action_embedding, action_embedding))
+        self.action = nn.Sequential(
+            nn.Linear(3, action_embedding), nn.ReLU(), nn.Linear(action_embedding, action_embedding)
+        )
         hidden = 64
         self.dist_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 1))
         self.aot_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 3))

@@ -144,9 +144,60 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
             m.normalized_distance, m.success
         ),
     }
+    if task == Task::Exploration {
+        print_axis_estimate(&ep)?;
+    }
     if let Some(out) = &a.out {
         println!("pictures in {}", out.display());
     }
+    Ok(())
+}
+
+/// The paper's joint-axis inference from the executed directions, against the truth.
+fn print_axis_estimate(ep: &umpnet_eval::episode::Episode) -> Result<()> {
+    use nalgebra::Vector3;
+    use umpnet_policy::axis::{JointEstimate, axis_angle_deg, infer_joint};
+    let moved: Vec<&Step> = ep.steps.iter().filter(|s| s.record.labels.moved).collect();
+    let dirs: Vec<Vector3<f32>> = moved
+        .iter()
+        .map(|s| Vector3::from(s.record.direction))
+        .collect();
+    let pts: Vec<Vector3<f32>> = moved
+        .iter()
+        .map(|s| Vector3::from(s.gripper_in_world))
+        .collect();
+    let (Some(est), Some(j)) = (infer_joint(&dirs, &pts), ep.joint) else {
+        println!("joint axis: too few effective actions to infer");
+        return Ok(());
+    };
+    let model = std::sync::Arc::new(ep.scene.object.load()?);
+    let mut art = umpnet_sim::physics::Articulation::new(
+        model.clone(),
+        ep.scene.world_from_base(),
+        Default::default(),
+    );
+    art.set_joint_positions(&ep.scene.joints)?;
+    let (true_axis, _) = art.joint_axis_in_world(j);
+    let truth = Vector3::new(true_axis.x, true_axis.y, true_axis.z);
+    let (kind, axis) = match &est {
+        JointEstimate::Prismatic { axis } => ("prismatic", axis),
+        JointEstimate::Revolute { axis, .. } => ("revolute", axis),
+    };
+    let true_kind = if model.joints[j].kind.is_prismatic() {
+        "prismatic"
+    } else {
+        "revolute"
+    };
+    println!(
+        "joint axis: inferred {kind} ({:.3}, {:.3}, {:.3}); true {true_kind} ({:.3}, {:.3}, {:.3}); angle error {:.1} deg",
+        axis[0],
+        axis[1],
+        axis[2],
+        truth.x,
+        truth.y,
+        truth.z,
+        axis_angle_deg(&Vector3::from(*axis), &truth)
+    );
     Ok(())
 }
 

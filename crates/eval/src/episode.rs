@@ -10,6 +10,8 @@ use umpnet_sim::scene::{Scene, Task};
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Step {
     pub record: StepRecord,
+    /// Gripper position when the action started.
+    pub gripper_in_world: [f32; 3],
     pub candidates: Option<Candidates>,
 }
 
@@ -103,12 +105,18 @@ pub fn run_episode(
                     break;
                 }
             };
+            let gripper = env
+                .articulation()
+                .gripper_position()
+                .unwrap_or_default()
+                .to_array();
             let labels = env.step_direction(direction)?;
             let step = Step {
                 record: StepRecord {
                     direction: direction.normalize().to_array(),
                     labels,
                 },
+                gripper_in_world: gripper,
                 candidates,
             };
             if let Some(h) = hook.as_mut() {

@@ -5,6 +5,7 @@ pub mod episode;
 pub mod learned;
 pub mod policy;
 pub mod scripted;
+pub mod train_env;
 
 pub use policy::{Decision, Observation, Policy, StepRecord};
 

@@ -1,1 +1,706 @@
+//! Python bindings: `umpnet.Env`, `umpnet.VecEnv`, `umpnet.Policy`.
+//! Errors become ValueError (bad input) or RuntimeError (anything else);
+//! no Rust panic crosses into Python.
+use numpy::{
+    PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArray4,
+    PyUntypedArrayMethods,
+};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+use std::path::PathBuf;
+use std::sync::Arc;
+use umpnet_eval::EvalError;
+use umpnet_eval::train_env::{EnvConfig, EnvObservation, PositionInfo, ScriptedAction, TrainEnv};
+use umpnet_policy::cem::Mode;
+use umpnet_policy::{DecisionInput, ModelPackage, UmpnetPolicy};
+use umpnet_sim::env::StepLabels;
+use umpnet_sim::objects::{Category, InstanceSplit};
+use umpnet_sim::scene::{Scene, Task};
 
+fn runtime_err(e: impl std::fmt::Display) -> PyErr {
+    PyRuntimeError::new_err(e.to_string())
+}
+
+fn eval_err(e: EvalError) -> PyErr {
+    match e {
+        EvalError::Sim(umpnet_sim::SimError::InvalidAction(m)) => PyValueError::new_err(m),
+        EvalError::Sim(umpnet_sim::SimError::InvalidScene(m)) => PyValueError::new_err(m),
+        EvalError::Policy(umpnet_policy::PolicyError::Input(m)) => PyValueError::new_err(m),
+        other => runtime_err(other),
+    }
+}
+
+fn array<'py>(py: Python<'py>, data: Vec<f32>, shape: &[usize]) -> PyResult<Bound<'py, PyAny>> {
+    Ok(PyArray1::from_vec(py, data)
+        .reshape(shape.to_vec())?
+        .into_any())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn make_config(
+    category: Option<Vec<String>>,
+    split: &str,
+    resolution: (u32, u32),
+    task: &str,
+    object_dir: Option<PathBuf>,
+    renderer: &str,
+    dataset_seed: u64,
+) -> PyResult<EnvConfig> {
+    let task: Task = task
+        .parse()
+        .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
+    let split = match split {
+        "train" => InstanceSplit::Train,
+        "test" => InstanceSplit::Test,
+        s => {
+            return Err(PyValueError::new_err(format!(
+                "split `{s}`: expected train or test"
+            )));
+        }
+    };
+    if !(8..=4096).contains(&resolution.0) || !(8..=4096).contains(&resolution.1) {
+        return Err(PyValueError::new_err(format!(
+            "resolution {resolution:?}: height and width must be in 8..=4096"
+        )));
+    }
+    let mut cfg = EnvConfig::new(task, split);
+    cfg.resolution = resolution;
+    cfg.dataset_seed = dataset_seed;
+    cfg.renderer = renderer
+        .parse()
+        .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
+    if let Some(names) = category {
+        cfg.categories = names
+            .iter()
+            .map(|n| {
+                n.parse::<Category>()
+                    .map_err(|e| PyValueError::new_err(e.to_string()))
+            })
+            .collect::<PyResult<_>>()?;
+    }
+    if let Some(dir) = object_dir {
+        let urdf = if dir.is_dir() {
+            dir.join("mobility.urdf")
+        } else {
+            dir
+        };
+        if !urdf.is_file() {
+            return Err(PyValueError::new_err(format!(
+                "object_dir: {} not found",
+                urdf.display()
+            )));
+        }
+        cfg.object = Some(urdf);
+    }
+    Ok(cfg)
+}
+
+fn obs_dict<'py>(
+    py: Python<'py>,
+    o: &EnvObservation,
+    reference: Option<&ndarray::Array3<f32>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (h, w, c) = o.image.dim();
+    let d = PyDict::new(py);
+    d.set_item(
+        "image",
+        array(py, o.image.iter().copied().collect(), &[h, w, c])?,
+    )?;
+    if let Some(r) = reference {
+        d.set_item(
+            "reference",
+            array(py, r.iter().copied().collect(), &[h, w, c])?,
+        )?;
+    }
+    let seg: Vec<i64> = o.segmentation.iter().map(|&s| s as i64).collect();
+    d.set_item(
+        "segmentation",
+        PyArray1::from_vec(py, seg).reshape(vec![h, w])?,
+    )?;
+    let [fx, fy, cx, cy] = o.intrinsics;
+    d.set_item(
+        "intrinsics",
+        array(py, vec![fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0], &[3, 3])?,
+    )?;
+    d.set_item(
+        "world_from_camera",
+        array(
+            py,
+            o.world_from_camera.iter().flatten().copied().collect(),
+            &[4, 4],
+        )?,
+    )?;
+    let gp: Vec<i64> = o
+        .gripper_pixel
+        .map(|(r, c)| vec![r as i64, c as i64])
+        .unwrap_or_else(|| vec![-1, -1]);
+    d.set_item("gripper_pixel", PyArray1::from_vec(py, gp))?;
+    Ok(d)
+}
+
+fn labels_dict<'py>(py: Python<'py>, l: &StepLabels) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("r_dist", l.r_dist)?;
+    d.set_item("aot", l.aot)?;
+    d.set_item("moved", l.moved)?;
+    Ok(d)
+}
+
+fn step_info<'py>(
+    py: Python<'py>,
+    l: &StepLabels,
+    joints: Vec<f32>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("joint_before", l.joint_before)?;
+    d.set_item("joint_after", l.joint_after)?;
+    d.set_item("reached_limit", l.reached_limit)?;
+    d.set_item("back_at_start", l.back_at_start)?;
+    d.set_item("suction_lost", l.suction_lost)?;
+    d.set_item("joints", joints)?;
+    Ok(d)
+}
+
+fn position_info<'py>(py: Python<'py>, i: &PositionInfo) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("valid", i.valid)?;
+    d.set_item("link", i.link)?;
+    d.set_item("joint", i.joint)?;
+    d.set_item("point_in_world", i.point_in_world.map(|p| p.to_vec()))?;
+    Ok(d)
+}
+
+fn parse_direction(v: Vec<f32>) -> PyResult<[f32; 3]> {
+    let d: [f32; 3] = v.try_into().map_err(|v: Vec<f32>| {
+        PyValueError::new_err(format!("direction must have 3 components, got {}", v.len()))
+    })?;
+    if !d.iter().all(|x| x.is_finite()) || d.iter().map(|x| x * x).sum::<f32>() < 1e-12 {
+        return Err(PyValueError::new_err(format!(
+            "direction {d:?} must be finite and non-zero"
+        )));
+    }
+    Ok(d)
+}
+
+/// One simulated scene: reset, a position action (a pixel), then direction
+/// actions (unit vectors in the world frame). Observations are dicts of numpy
+/// arrays: `image` and `reference` (H x W x 10 float32: xyz, rgb, normal,
+/// depth), `segmentation`, `intrinsics`, `world_from_camera`, `gripper_pixel`.
+#[pyclass(module = "umpnet")]
+struct Env {
+    inner: TrainEnv,
+}
+
+#[pymethods]
+impl Env {
+    #[new]
+    #[pyo3(signature = (category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        category: Option<Vec<String>>,
+        split: &str,
+        seed: u64,
+        resolution: (u32, u32),
+        task: &str,
+        object_dir: Option<PathBuf>,
+        renderer: &str,
+        dataset_seed: u64,
+    ) -> PyResult<Self> {
+        let cfg = make_config(
+            category,
+            split,
+            resolution,
+            task,
+            object_dir,
+            renderer,
+            dataset_seed,
+        )?;
+        Ok(Self {
+            inner: TrainEnv::new(cfg, seed).map_err(eval_err)?,
+        })
+    }
+
+    /// Starts an episode on a new scene, or on `scene` (JSON from `.scene`). Returns the observation.
+    #[pyo3(signature = (scene=None))]
+    fn reset<'py>(&mut self, py: Python<'py>, scene: Option<&str>) -> PyResult<Bound<'py, PyDict>> {
+        let scene = scene
+            .map(Scene::from_json)
+            .transpose()
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let obs = self.inner.reset(scene).map_err(eval_err)?;
+        obs_dict(py, &obs, self.inner.reference())
+    }
+
+    /// The scene as JSON; `reset(scene=...)` replays it exactly.
+    #[getter]
+    fn scene(&self) -> PyResult<String> {
+        self.inner
+            .scene()
+            .map(Scene::to_json)
+            .ok_or_else(|| PyRuntimeError::new_err("reset() first"))
+    }
+
+    /// Grasps at pixel (row, col). Returns (observation, info); info["valid"] is
+    /// False when the pixel is not on a movable link (or not on the goal joint).
+    fn step_position<'py>(
+        &mut self,
+        py: Python<'py>,
+        row: i64,
+        col: i64,
+    ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+        if row < 0 || col < 0 {
+            return Err(PyValueError::new_err(format!(
+                "pixel ({row}, {col}) must be non-negative"
+            )));
+        }
+        let (obs, info) = self
+            .inner
+            .step_position(row as u32, col as u32)
+            .map_err(eval_err)?;
+        Ok((
+            obs_dict(py, &obs, self.inner.reference())?,
+            position_info(py, &info)?,
+        ))
+    }
+
+    /// Moves the gripper 0.18 m along `direction`. Returns (observation, labels, info).
+    fn step_direction<'py>(
+        &mut self,
+        py: Python<'py>,
+        direction: Vec<f32>,
+    ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+        let d = parse_direction(direction)?;
+        let (obs, labels) = self.inner.step_direction(d).map_err(eval_err)?;
+        let joints = self.inner.joint_positions();
+        Ok((
+            obs_dict(py, &obs, self.inner.reference())?,
+            labels_dict(py, &labels)?,
+            step_info(py, &labels, joints)?,
+        ))
+    }
+
+    /// The action `oracle` or `random` would take now: (row, col) before the
+    /// grasp, a direction after, None when the policy stops.
+    fn scripted_action(&mut self, py: Python<'_>, policy: &str) -> PyResult<Py<PyAny>> {
+        Ok(
+            match self.inner.scripted_action(policy).map_err(eval_err)? {
+                ScriptedAction::Pixel(r, c) => (r, c).into_pyobject(py)?.into_any().unbind(),
+                ScriptedAction::Direction(d) => d.to_vec().into_pyobject(py)?.into_any().unbind(),
+                ScriptedAction::Stop => py.None(),
+            },
+        )
+    }
+
+    /// Current joint values of the object.
+    fn joint_positions(&self) -> Vec<f32> {
+        self.inner.joint_positions()
+    }
+}
+
+/// n environments stepped in parallel Rust threads (GIL released); env i is
+/// seeded `seed + i`. Results are stacked into one numpy array per field.
+#[pyclass(module = "umpnet")]
+struct VecEnv {
+    envs: Vec<TrainEnv>,
+}
+
+fn stack<'py>(
+    py: Python<'py>,
+    obs: &[EnvObservation],
+    refs: &[Option<&ndarray::Array3<f32>>],
+) -> PyResult<Bound<'py, PyDict>> {
+    let n = obs.len();
+    let (h, w, c) = obs.first().map(|o| o.image.dim()).unwrap_or((0, 0, 0));
+    let d = PyDict::new(py);
+    let mut image = Vec::with_capacity(n * h * w * c);
+    let mut reference = Vec::with_capacity(n * h * w * c);
+    let mut seg = Vec::with_capacity(n * h * w);
+    let mut gp = Vec::with_capacity(2 * n);
+    for (o, r) in obs.iter().zip(refs) {
+        image.extend(o.image.iter().copied());
+        match r {
+            Some(r) => reference.extend(r.iter().copied()),
+            None => reference.extend(std::iter::repeat_n(0.0, h * w * c)),
+        }
+        seg.extend(o.segmentation.iter().map(|&s| s as i64));
+        let (gr, gc) = o
+            .gripper_pixel
+            .map(|(a, b)| (a as i64, b as i64))
+            .unwrap_or((-1, -1));
+        gp.extend([gr, gc]);
+    }
+    d.set_item("image", array(py, image, &[n, h, w, c])?)?;
+    d.set_item("reference", array(py, reference, &[n, h, w, c])?)?;
+    d.set_item(
+        "segmentation",
+        PyArray1::from_vec(py, seg).reshape(vec![n, h, w])?,
+    )?;
+    d.set_item(
+        "gripper_pixel",
+        PyArray1::from_vec(py, gp).reshape(vec![n, 2])?,
+    )?;
+    Ok(d)
+}
+
+#[pymethods]
+impl VecEnv {
+    #[new]
+    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        n: usize,
+        category: Option<Vec<String>>,
+        split: &str,
+        seed: u64,
+        resolution: (u32, u32),
+        task: &str,
+        object_dir: Option<PathBuf>,
+        renderer: &str,
+        dataset_seed: u64,
+    ) -> PyResult<Self> {
+        if n == 0 {
+            return Err(PyValueError::new_err("n must be at least 1"));
+        }
+        let cfg = make_config(
+            category,
+            split,
+            resolution,
+            task,
+            object_dir,
+            renderer,
+            dataset_seed,
+        )?;
+        let envs = (0..n)
+            .map(|i| TrainEnv::new(cfg.clone(), seed + i as u64))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(eval_err)?;
+        Ok(Self { envs })
+    }
+
+    fn __len__(&self) -> usize {
+        self.envs.len()
+    }
+
+    /// Resets every environment (optionally to given scenes, one JSON each).
+    #[pyo3(signature = (scenes=None))]
+    fn reset<'py>(
+        &mut self,
+        py: Python<'py>,
+        scenes: Option<Vec<String>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.envs.len();
+        let scenes: Vec<Option<Scene>> = match scenes {
+            Some(s) if s.len() != n => {
+                return Err(PyValueError::new_err(format!(
+                    "{} scenes for {n} environments",
+                    s.len()
+                )));
+            }
+            Some(s) => s
+                .iter()
+                .map(|j| Scene::from_json(j).map(Some))
+                .collect::<Result<_, _>>()
+                .map_err(|e| PyValueError::new_err(e.to_string()))?,
+            None => vec![None; n],
+        };
+        let envs = &mut self.envs;
+        let obs: Vec<EnvObservation> = py
+            .detach(|| {
+                envs.par_iter_mut()
+                    .zip(scenes)
+                    .map(|(e, s)| e.reset(s))
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .map_err(eval_err)?;
+        let refs: Vec<_> = self.envs.iter().map(|e| e.reference()).collect();
+        stack(py, &obs, &refs)
+    }
+
+    /// Scenes of all environments as JSON strings.
+    #[getter]
+    fn scenes(&self) -> Vec<String> {
+        self.envs
+            .iter()
+            .map(|e| e.scene().map(Scene::to_json).unwrap_or_default())
+            .collect()
+    }
+
+    /// pixels: int array n x 2 (row, col). Returns (observations, info) with info["valid"] a bool array.
+    fn step_position<'py>(
+        &mut self,
+        py: Python<'py>,
+        pixels: PyReadonlyArray2<'py, i64>,
+    ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+        let n = self.envs.len();
+        if pixels.shape() != [n, 2] {
+            return Err(PyValueError::new_err(format!(
+                "pixels has shape {:?}, expected ({n}, 2)",
+                pixels.shape()
+            )));
+        }
+        let p: Vec<i64> = pixels.as_array().iter().copied().collect();
+        if p.iter().any(|&v| v < 0) {
+            return Err(PyValueError::new_err("pixels must be non-negative"));
+        }
+        let envs = &mut self.envs;
+        let out = py
+            .detach(|| {
+                envs.par_iter_mut()
+                    .enumerate()
+                    .map(|(i, e)| e.step_position(p[2 * i] as u32, p[2 * i + 1] as u32))
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .map_err(eval_err)?;
+        let (obs, infos): (Vec<_>, Vec<_>) = out.into_iter().unzip();
+        let refs: Vec<_> = self.envs.iter().map(|e| e.reference()).collect();
+        let info = PyDict::new(py);
+        info.set_item("valid", infos.iter().map(|i| i.valid).collect::<Vec<_>>())?;
+        info.set_item(
+            "joint",
+            infos
+                .iter()
+                .map(|i| i.joint.map(|j| j as i64).unwrap_or(-1))
+                .collect::<Vec<_>>(),
+        )?;
+        Ok((stack(py, &obs, &refs)?, info))
+    }
+
+    /// directions: float array n x 3. Environments without a valid grasp are
+    /// skipped (info["active"] False, labels zero). Returns (observations, labels, info).
+    fn step_direction<'py>(
+        &mut self,
+        py: Python<'py>,
+        directions: PyReadonlyArray2<'py, f32>,
+    ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+        let n = self.envs.len();
+        if directions.shape() != [n, 3] {
+            return Err(PyValueError::new_err(format!(
+                "directions has shape {:?}, expected ({n}, 3)",
+                directions.shape()
+            )));
+        }
+        let a = directions.as_array();
+        let dirs: Vec<[f32; 3]> = (0..n).map(|i| [a[[i, 0]], a[[i, 1]], a[[i, 2]]]).collect();
+        for (i, d) in dirs.iter().enumerate() {
+            if self.envs[i].grasped_joint().is_some() {
+                parse_direction(d.to_vec())
+                    .map_err(|e| PyValueError::new_err(format!("row {i}: {e}")))?;
+            }
+        }
+        let envs = &mut self.envs;
+        let out = py
+            .detach(|| {
+                envs.par_iter_mut()
+                    .zip(&dirs)
+                    .map(|(e, d)| {
+                        if e.grasped_joint().is_some() {
+                            e.step_direction(*d).map(|(o, l)| (o, Some(l)))
+                        } else {
+                            e.reset_observation().map(|o| (o, None))
+                        }
+                    })
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .map_err(eval_err)?;
+        let refs: Vec<_> = self.envs.iter().map(|e| e.reference()).collect();
+        let obs: Vec<EnvObservation> = out.iter().map(|(o, _)| o.clone()).collect();
+        let labels = PyDict::new(py);
+        let get = |f: &dyn Fn(&StepLabels) -> f32| -> Vec<f32> {
+            out.iter()
+                .map(|(_, l)| l.as_ref().map(f).unwrap_or(0.0))
+                .collect()
+        };
+        labels.set_item("r_dist", PyArray1::from_vec(py, get(&|l| l.r_dist)))?;
+        labels.set_item(
+            "aot",
+            PyArray1::from_vec(
+                py,
+                out.iter()
+                    .map(|(_, l)| l.as_ref().map(|l| l.aot as i64).unwrap_or(0))
+                    .collect::<Vec<_>>(),
+            ),
+        )?;
+        labels.set_item(
+            "moved",
+            out.iter()
+                .map(|(_, l)| l.as_ref().is_some_and(|l| l.moved))
+                .collect::<Vec<_>>(),
+        )?;
+        let info = PyDict::new(py);
+        info.set_item(
+            "active",
+            out.iter().map(|(_, l)| l.is_some()).collect::<Vec<_>>(),
+        )?;
+        info.set_item(
+            "joint_after",
+            PyArray1::from_vec(py, get(&|l| l.joint_after)),
+        )?;
+        info.set_item(
+            "suction_lost",
+            out.iter()
+                .map(|(_, l)| l.as_ref().is_some_and(|l| l.suction_lost))
+                .collect::<Vec<_>>(),
+        )?;
+        Ok((stack(py, &obs, &refs)?, labels, info))
+    }
+
+    /// Scripted actions for every environment (see Env.scripted_action).
+    fn scripted_actions(&mut self, py: Python<'_>, policy: &str) -> PyResult<Vec<Py<PyAny>>> {
+        let mut out = Vec::with_capacity(self.envs.len());
+        for e in &mut self.envs {
+            out.push(match e.scripted_action(policy).map_err(eval_err)? {
+                ScriptedAction::Pixel(r, c) => (r, c).into_pyobject(py)?.into_any().unbind(),
+                ScriptedAction::Direction(d) => d.to_vec().into_pyobject(py)?.into_any().unbind(),
+                ScriptedAction::Stop => py.None(),
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// The Rust policy runtime on a model package.
+#[pyclass(module = "umpnet")]
+struct Policy {
+    inner: UmpnetPolicy,
+    rng: rand_chacha::ChaCha8Rng,
+}
+
+#[pymethods]
+impl Policy {
+    #[new]
+    #[pyo3(signature = (model_dir, seed=0, threads=1))]
+    fn new(model_dir: PathBuf, seed: u64, threads: usize) -> PyResult<Self> {
+        use rand::SeedableRng;
+        let pkg = ModelPackage::load(&model_dir, 1, threads, None).map_err(runtime_err)?;
+        Ok(Self {
+            inner: UmpnetPolicy::new(Arc::new(pkg)),
+            rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed),
+        })
+    }
+
+    /// (height, width) the model takes.
+    #[getter]
+    fn resolution(&self) -> (usize, usize) {
+        self.inner.resolution()
+    }
+
+    /// The grasp pixel (row, col) for an H x W x 10 observation (masked by a goal observation if given).
+    #[pyo3(signature = (image, goal=None))]
+    fn position(
+        &self,
+        image: PyReadonlyArray3<'_, f32>,
+        goal: Option<PyReadonlyArray3<'_, f32>>,
+    ) -> PyResult<(usize, usize)> {
+        let img = to_array3(&image)?;
+        let g = goal.as_ref().map(to_array3).transpose()?;
+        let c = self
+            .inner
+            .position(img.view(), g.as_ref().map(|g| g.view()))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(c.pixel)
+    }
+
+    /// Directions for a batch: images/references B x H x W x 10, pixels B x 2.
+    /// Returns a list of dicts (direction or None to stop, candidates, distance, aot).
+    #[pyo3(signature = (images, references, pixels, mode="explore"))]
+    fn direction_batch<'py>(
+        &mut self,
+        py: Python<'py>,
+        images: PyReadonlyArray4<'py, f32>,
+        references: PyReadonlyArray4<'py, f32>,
+        pixels: PyReadonlyArray2<'py, i64>,
+        mode: &str,
+    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        use rand::SeedableRng;
+        let mode = match mode {
+            "explore" | "exploration" => Mode::Explore,
+            "goal" => Mode::Goal,
+            m => {
+                return Err(PyValueError::new_err(format!(
+                    "mode `{m}`: expected explore or goal"
+                )));
+            }
+        };
+        let b = images.shape()[0];
+        if references.shape() != images.shape() || pixels.shape() != [b, 2] {
+            return Err(PyValueError::new_err(format!(
+                "shapes: images {:?}, references {:?}, pixels {:?}; expected equal image shapes and pixels ({b}, 2)",
+                images.shape(),
+                references.shape(),
+                pixels.shape()
+            )));
+        }
+        let imgs: Vec<ndarray::Array3<f32>> = (0..b).map(|i| slice3(&images, i)).collect();
+        let refs: Vec<ndarray::Array3<f32>> = (0..b).map(|i| slice3(&references, i)).collect();
+        let px = pixels.as_array();
+        let inputs: Vec<DecisionInput> = (0..b)
+            .map(|i| DecisionInput {
+                observation: imgs[i].view(),
+                reference: refs[i].view(),
+                pixel: (px[[i, 0]].max(0) as usize, px[[i, 1]].max(0) as usize),
+                banned: &[],
+                mode,
+            })
+            .collect();
+        let mut rngs: Vec<rand_chacha::ChaCha8Rng> = (0..b)
+            .map(|i| {
+                rand_chacha::ChaCha8Rng::seed_from_u64(
+                    rand::Rng::random::<u64>(&mut self.rng) ^ i as u64,
+                )
+            })
+            .collect();
+        let inner = &self.inner;
+        let results = py
+            .detach(|| inner.directions(&inputs, &mut rngs))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        results
+            .iter()
+            .map(|r| {
+                let d = PyDict::new(py);
+                d.set_item("direction", r.direction.map(|v| vec![v.x, v.y, v.z]))?;
+                d.set_item(
+                    "candidates",
+                    r.candidates
+                        .iter()
+                        .map(|v| vec![v.x, v.y, v.z])
+                        .collect::<Vec<_>>(),
+                )?;
+                d.set_item(
+                    "distance",
+                    r.scores.iter().map(|s| s.distance).collect::<Vec<_>>(),
+                )?;
+                d.set_item("aot", r.scores.iter().map(|s| s.aot).collect::<Vec<_>>())?;
+                Ok(d)
+            })
+            .collect()
+    }
+}
+
+fn to_array3(a: &PyReadonlyArray3<'_, f32>) -> PyResult<ndarray::Array3<f32>> {
+    let s = a.shape();
+    let v: Vec<f32> = a.as_array().iter().copied().collect();
+    ndarray::Array3::from_shape_vec((s[0], s[1], s[2]), v).map_err(runtime_err)
+}
+
+fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
+    let s = a.shape();
+    let v: Vec<f32> = a
+        .as_array()
+        .index_axis(numpy::ndarray::Axis(0), i)
+        .iter()
+        .copied()
+        .collect();
+    ndarray::Array3::from_shape_vec((s[1], s[2], s[3]), v)
+        .unwrap_or_else(|_| ndarray::Array3::zeros((s[1], s[2], s[3])))
+}
+
+#[pymodule]
+fn _umpnet(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Env>()?;
+    m.add_class::<VecEnv>()?;
+    m.add_class::<Policy>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -118,7 +118,7 @@ impl std::str::FromStr for RendererKind {
     }
 }
 
-pub trait Renderer: Send {
+pub trait Renderer: Send + Sync {
     /// Renderer and adapter, e.g. "wgpu/Vulkan llvmpipe".
     fn name(&self) -> String;
     /// Replaces the scene's meshes (once per scene).

@@ -1,0 +1,311 @@
+//! The environment Python trains against: scenes sampled from a split,
+//! observations as tensors, scripted actions for exploration and baselines.
+use crate::learned::{observation_tensor, project_pixel};
+use crate::policy::{Decision, Observation, Policy};
+use crate::scripted::{OraclePolicy, RandomPolicy};
+use crate::{EvalError, Result};
+use ndarray::Array3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::path::PathBuf;
+use umpnet_sim::camera::Camera;
+use umpnet_sim::env::{Pick, SimEnv, StepLabels};
+use umpnet_sim::math::Vec3;
+use umpnet_sim::objects::{Category, InstanceSplit, nth_instance};
+use umpnet_sim::render::{Frame, RendererKind, create_renderer};
+use umpnet_sim::scene::{ObjectSource, Scene, Task};
+
+/// Instances per category a training environment draws from.
+pub const TRAIN_INSTANCES: u32 = 16;
+
+#[derive(Clone, Debug)]
+pub struct EnvConfig {
+    pub categories: Vec<Category>,
+    pub split: InstanceSplit,
+    pub task: Task,
+    pub resolution: (u32, u32),
+    pub renderer: RendererKind,
+    pub dataset_seed: u64,
+    /// A URDF file instead of generated instances.
+    pub object: Option<PathBuf>,
+}
+
+impl EnvConfig {
+    pub fn new(task: Task, split: InstanceSplit) -> Self {
+        let categories = Category::ALL
+            .iter()
+            .copied()
+            .filter(|c| c.is_train() || split == InstanceSplit::Test)
+            .collect();
+        Self {
+            categories,
+            split,
+            task,
+            resolution: (96, 128),
+            renderer: RendererKind::Auto,
+            dataset_seed: 0,
+            object: None,
+        }
+    }
+}
+
+/// One observation as arrays.
+#[derive(Clone, Debug)]
+pub struct EnvObservation {
+    pub image: Array3<f32>,
+    pub segmentation: Vec<u32>,
+    pub intrinsics: [f32; 4],
+    pub world_from_camera: [[f32; 4]; 4],
+    /// Where the gripper is in the image (row, col), once it holds something.
+    pub gripper_pixel: Option<(usize, usize)>,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct PositionInfo {
+    pub valid: bool,
+    pub link: Option<usize>,
+    pub joint: Option<usize>,
+    pub point_in_world: Option<[f32; 3]>,
+}
+
+pub enum ScriptedAction {
+    Pixel(u32, u32),
+    Direction([f32; 3]),
+    Stop,
+}
+
+pub struct TrainEnv {
+    cfg: EnvConfig,
+    rng: ChaCha8Rng,
+    env: Option<SimEnv>,
+    frame: Option<Frame>,
+    reference_frame: Option<Frame>,
+    reference: Option<Array3<f32>>,
+    oracle: OraclePolicy,
+    random: RandomPolicy,
+    history: Vec<crate::policy::StepRecord>,
+}
+
+impl TrainEnv {
+    pub fn new(cfg: EnvConfig, seed: u64) -> Result<Self> {
+        if cfg.categories.is_empty() && cfg.object.is_none() {
+            return Err(EvalError::Episode("no categories to sample from".into()));
+        }
+        let mut random = RandomPolicy::default();
+        random.reset(seed ^ 0xA5A5);
+        Ok(Self {
+            cfg,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            env: None,
+            frame: None,
+            reference_frame: None,
+            reference: None,
+            oracle: OraclePolicy::default(),
+            random,
+            history: Vec::new(),
+        })
+    }
+
+    pub fn config(&self) -> &EnvConfig {
+        &self.cfg
+    }
+
+    /// A fresh scene from this environment's random stream.
+    pub fn sample_scene(&mut self) -> Result<Scene> {
+        let (object, category) = match &self.cfg.object {
+            Some(p) => (ObjectSource::File { path: p.clone() }, None),
+            None => {
+                let c = self.cfg.categories[self.rng.random_range(0..self.cfg.categories.len())];
+                let split = if c.is_train() {
+                    self.cfg.split
+                } else {
+                    InstanceSplit::Test
+                };
+                let pool = if split == InstanceSplit::Train {
+                    TRAIN_INSTANCES
+                } else {
+                    crate::bench::INSTANCES_PER_CATEGORY
+                };
+                let index = nth_instance(c, split, self.rng.random_range(0..pool));
+                (
+                    ObjectSource::Generated {
+                        category: c,
+                        index,
+                        dataset_seed: self.cfg.dataset_seed,
+                    },
+                    Some(c),
+                )
+            }
+        };
+        crate::bench::sample_visible_scene(&mut self.rng, self.cfg.task, category, object)
+    }
+
+    fn observe(&self, frame: &Frame) -> Result<EnvObservation> {
+        let env = self
+            .env
+            .as_ref()
+            .ok_or_else(|| EvalError::Episode("reset() first".into()))?;
+        Ok(EnvObservation {
+            image: observation_tensor(frame)?,
+            segmentation: frame.segmentation.clone(),
+            intrinsics: [
+                frame.intrinsics.fx,
+                frame.intrinsics.fy,
+                frame.intrinsics.cx,
+                frame.intrinsics.cy,
+            ],
+            world_from_camera: frame
+                .world_from_camera
+                .to_mat4()
+                .transpose()
+                .to_cols_array_2d(),
+            gripper_pixel: env
+                .articulation()
+                .gripper_position()
+                .map(|g| project_pixel(frame, g)),
+        })
+    }
+
+    /// Starts an episode on `scene`, or on a newly sampled one.
+    pub fn reset(&mut self, scene: Option<Scene>) -> Result<EnvObservation> {
+        let scene = match scene {
+            Some(s) => s,
+            None => self.sample_scene()?,
+        };
+        let camera = Camera::reference(self.cfg.resolution.0, self.cfg.resolution.1);
+        match self.env.as_mut() {
+            Some(env) if env.scene().object == scene.object && env.camera() == &camera => {
+                env.reset(scene)?
+            }
+            _ => {
+                self.env = Some(SimEnv::new(
+                    scene,
+                    camera,
+                    create_renderer(self.cfg.renderer)?,
+                )?)
+            }
+        }
+        let env = self
+            .env
+            .as_mut()
+            .ok_or_else(|| EvalError::Episode("no environment".into()))?;
+        let frame = env.render()?;
+        let reference_frame = match env.scene().task {
+            Task::Goal => env.render_goal()?.unwrap_or_else(|| frame.clone()),
+            Task::Exploration => frame.clone(),
+        };
+        self.reference = Some(observation_tensor(&reference_frame)?);
+        self.reference_frame = Some(reference_frame);
+        self.oracle.reset(0);
+        self.history.clear();
+        let obs = self.observe(&frame)?;
+        self.frame = Some(frame);
+        Ok(obs)
+    }
+
+    pub fn scene(&self) -> Option<&Scene> {
+        self.env.as_ref().map(|e| e.scene())
+    }
+
+    /// The reference observation: the initial one (exploration) or the goal.
+    pub fn reference(&self) -> Option<&Array3<f32>> {
+        self.reference.as_ref()
+    }
+
+    pub fn joint_positions(&self) -> Vec<f32> {
+        self.env
+            .as_ref()
+            .map(|e| e.joint_positions())
+            .unwrap_or_default()
+    }
+
+    pub fn grasped_joint(&self) -> Option<usize> {
+        self.env.as_ref().and_then(|e| e.grasped_joint())
+    }
+
+    /// The current observation, without acting.
+    pub fn reset_observation(&self) -> Result<EnvObservation> {
+        let frame = self
+            .frame
+            .as_ref()
+            .ok_or_else(|| EvalError::Episode("reset() first".into()))?;
+        self.observe(frame)
+    }
+
+    pub fn step_position(&mut self, row: u32, col: u32) -> Result<(EnvObservation, PositionInfo)> {
+        let (env, frame) = match (self.env.as_mut(), self.frame.as_ref()) {
+            (Some(e), Some(f)) => (e, f),
+            _ => return Err(EvalError::Episode("step_position before reset()".into())),
+        };
+        let pick = env.step_position(frame, row, col)?;
+        let valid = env.pick_is_valid(&pick);
+        let info = match pick {
+            Pick::Movable {
+                point_in_world,
+                link,
+                joint,
+                ..
+            } => PositionInfo {
+                valid,
+                link: Some(link),
+                joint: Some(joint),
+                point_in_world: Some(point_in_world.to_array()),
+            },
+            Pick::NoMovableLink => PositionInfo::default(),
+        };
+        let frame = env.render()?;
+        let obs = self.observe(&frame)?;
+        self.frame = Some(frame);
+        Ok((obs, info))
+    }
+
+    pub fn step_direction(&mut self, direction: [f32; 3]) -> Result<(EnvObservation, StepLabels)> {
+        let env = self
+            .env
+            .as_mut()
+            .ok_or_else(|| EvalError::Episode("step_direction before reset()".into()))?;
+        let labels = env.step_direction(Vec3::from(direction))?;
+        self.history.push(crate::policy::StepRecord {
+            direction: Vec3::from(direction).normalize().to_array(),
+            labels: labels.clone(),
+        });
+        let frame = env.render()?;
+        let obs = self.observe(&frame)?;
+        self.frame = Some(frame);
+        Ok((obs, labels))
+    }
+
+    /// What `oracle` or `random` would do now (a pixel before the grasp, a direction after).
+    pub fn scripted_action(&mut self, policy: &str) -> Result<ScriptedAction> {
+        let (env, frame, reference) = match (
+            self.env.as_ref(),
+            self.frame.as_ref(),
+            self.reference_frame.as_ref(),
+        ) {
+            (Some(e), Some(f), Some(r)) => (e, f, r),
+            _ => return Err(EvalError::Episode("scripted_action before reset()".into())),
+        };
+        let p: &mut dyn Policy = match policy {
+            "oracle" => &mut self.oracle,
+            "random" => &mut self.random,
+            other => {
+                return Err(EvalError::Episode(format!(
+                    "unknown scripted policy `{other}`; expected oracle or random"
+                )));
+            }
+        };
+        let obs = Observation {
+            frame,
+            reference,
+            gripper_in_world: env.articulation().gripper_position(),
+        };
+        if env.grasped_joint().is_none() {
+            let (r, c) = p.position(&obs, env)?;
+            return Ok(ScriptedAction::Pixel(r, c));
+        }
+        Ok(match p.direction(&obs, env, &self.history)? {
+            Decision::Move { direction, .. } => ScriptedAction::Direction(direction.to_array()),
+            Decision::Stop => ScriptedAction::Stop,
+        })
+    }
+}

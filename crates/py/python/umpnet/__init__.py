@@ -1,0 +1,12 @@
+"""umpnet: the UMPNet simulator and policy runtime (Rust), from Python.
+
+- ``Env``: one simulated scene; ``reset``, ``step_position(row, col)``,
+  ``step_direction(xyz)``; observations are dicts of numpy arrays.
+- ``VecEnv``: n environments stepped in parallel Rust threads.
+- ``Policy``: the Rust policy runtime on an exported model package.
+- ``umpnet.gym``: a gymnasium wrapper (optional; needs gymnasium).
+"""
+
+from ._umpnet import Env, Policy, VecEnv, __version__
+
+__all__ = ["Env", "Policy", "VecEnv", "__version__"]

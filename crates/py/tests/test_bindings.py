@@ -1,0 +1,140 @@
+"""The Python bindings: shapes, determinism, replay, VecEnv == Envs, gymnasium, errors."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+import umpnet
+
+RES = (48, 64)
+
+
+def episode(env, steps=3, policy="oracle"):
+    obs = env.reset()
+    px = env.scripted_action(policy)
+    obs, info = env.step_position(*px)
+    out = [obs["image"]]
+    labels = []
+    for _ in range(steps):
+        if not info["valid"]:
+            break
+        d = env.scripted_action(policy)
+        if d is None:
+            break
+        obs, lab, _ = env.step_direction(d)
+        out.append(obs["image"])
+        labels.append((lab["r_dist"], lab["aot"], lab["moved"]))
+    return out, labels
+
+
+def test_reset_and_step_shapes_and_dtypes():
+    env = umpnet.Env(category=["Microwave"], seed=3, resolution=RES)
+    obs = env.reset()
+    assert obs["image"].shape == (48, 64, 10) and obs["image"].dtype == np.float32
+    assert obs["reference"].shape == (48, 64, 10)
+    assert obs["segmentation"].shape == (48, 64)
+    assert obs["intrinsics"].shape == (3, 3) and obs["world_from_camera"].shape == (4, 4)
+    assert tuple(obs["gripper_pixel"]) == (-1, -1)
+    row, col = env.scripted_action("oracle")
+    obs, info = env.step_position(row, col)
+    assert info["valid"] and info["joint"] is not None and len(info["point_in_world"]) == 3
+    assert (obs["gripper_pixel"] >= 0).all()
+    obs, labels, info = env.step_direction(env.scripted_action("oracle"))
+    assert set(labels) == {"r_dist", "aot", "moved"} and labels["aot"] in (-1, 0, 1)
+    assert isinstance(info["joints"], list) and "reached_limit" in info
+
+
+def test_same_seed_same_episode_and_scene_replay():
+    a, la = episode(umpnet.Env(category=["Door", "Laptop"], seed=11, resolution=RES), policy="random")
+    b, lb = episode(umpnet.Env(category=["Door", "Laptop"], seed=11, resolution=RES), policy="random")
+    assert la == lb and all(np.array_equal(x, y) for x, y in zip(a, b))
+    env = umpnet.Env(seed=5, resolution=RES)
+    first = env.reset()
+    scene = env.scene
+    assert json.loads(scene)["task"] == "exploration"
+    env.reset()
+    again = env.reset(scene=scene)
+    assert np.array_equal(first["image"], again["image"])
+
+
+def test_vecenv_equals_separate_envs():
+    n = 3
+    vec = umpnet.VecEnv(n, seed=20, resolution=RES)
+    obs = vec.reset()
+    envs = [umpnet.Env(seed=20 + i, resolution=RES) for i in range(n)]
+    singles = [e.reset() for e in envs]
+    assert obs["image"].shape == (n, 48, 64, 10)
+    for i in range(n):
+        assert np.array_equal(obs["image"][i], singles[i]["image"])
+        assert np.array_equal(obs["reference"][i], singles[i]["reference"])
+    pixels = np.array(vec.scripted_actions("oracle"), dtype=np.int64)
+    obs, info = vec.step_position(pixels)
+    for i, e in enumerate(envs):
+        o, inf = e.step_position(*pixels[i])
+        assert inf["valid"] == info["valid"][i]
+        assert np.array_equal(o["image"], obs["image"][i])
+    dirs = np.array([d if d is not None else [0, 0, 1] for d in vec.scripted_actions("oracle")], dtype=np.float32)
+    obs, labels, info = vec.step_direction(dirs)
+    for i, e in enumerate(envs):
+        if not info["active"][i]:
+            continue
+        o, lab, _ = e.step_direction(dirs[i].tolist())
+        assert lab["aot"] == labels["aot"][i] and abs(lab["r_dist"] - labels["r_dist"][i]) < 1e-6
+        assert np.array_equal(o["image"], obs["image"][i])
+
+
+def test_errors_are_python_exceptions():
+    env = umpnet.Env(category=["Door"], seed=0, resolution=RES)
+    env.reset()
+    with pytest.raises(ValueError, match="before a position action"):
+        env.step_direction([1.0, 0.0, 0.0])
+    env.step_position(*env.scripted_action("oracle"))
+    with pytest.raises(ValueError, match="finite and non-zero"):
+        env.step_direction([float("nan"), 0.0, 0.0])
+    with pytest.raises(ValueError, match="3 components"):
+        env.step_direction([1.0, 0.0])
+    with pytest.raises(ValueError, match="already taken"):
+        env.step_position(1, 1)
+    with pytest.raises(ValueError, match="unknown category"):
+        umpnet.Env(category=["Spaceship"])
+    with pytest.raises(ValueError, match="split"):
+        umpnet.Env(split="validation")
+    with pytest.raises(ValueError, match="outside the 48x64 image"):
+        e2 = umpnet.Env(seed=1, resolution=RES)
+        e2.reset()
+        e2.step_position(100, 5)
+    vec = umpnet.VecEnv(2, resolution=RES)
+    vec.reset()
+    with pytest.raises(ValueError, match=r"expected \(2, 2\)"):
+        vec.step_position(np.zeros((3, 2), dtype=np.int64))
+    with pytest.raises(ValueError, match="scene JSON"):
+        env.reset(scene="{not json")
+    with pytest.raises(RuntimeError, match="model.json"):
+        umpnet.Policy("/nonexistent")
+
+
+def test_gymnasium_check_env():
+    gym = pytest.importorskip("gymnasium")
+    import umpnet.gym  # noqa: F401  (registers the ids)
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make("umpnet/Explore-v0", resolution=RES, category=["Door"]).unwrapped
+    check_env(env, skip_render_check=True)
+    obs, info = env.reset(seed=3)
+    assert obs["phase"] == 0 and "scene" in info
+    obs, _r, _term, _trunc, info = env.step({"phase": 0, "pixel": np.array([24, 32]), "direction": np.zeros(3)})
+    assert obs["phase"] == 1
+
+
+@pytest.mark.skipif(not os.environ.get("UMPNET_FIXTURE"), reason="UMPNET_FIXTURE not set (make test sets it)")
+def test_policy_runs_on_env_observations():
+    pol = umpnet.Policy(os.environ["UMPNET_FIXTURE"])
+    h, w = pol.resolution
+    env = umpnet.Env(seed=2, resolution=(h, w))
+    obs = env.reset()
+    row, col = pol.position(obs["image"])
+    assert 0 <= row < h and 0 <= col < w
+    out = pol.direction_batch(obs["image"][None], obs["reference"][None], np.array([[row, col]]), mode="explore")
+    assert len(out) == 1 and len(out[0]["candidates"]) == len(out[0]["distance"]) >= 64
+    assert out[0]["direction"] is not None and abs(np.linalg.norm(out[0]["direction"]) - 1) < 1e-4
