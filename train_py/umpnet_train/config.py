@@ -46,6 +46,7 @@ class Config:
     eval_every: int = 0
     threads: int = 2
     renderer: str = "auto"
+    device: str = "auto"  # auto (cuda when available), cpu, cuda
 
 
 PRESETS = {
@@ -53,13 +54,13 @@ PRESETS = {
     "cpu-small": {
         "height": 96,
         "width": 128,
-        "position_widths": (16, 32, 64),
-        "direction_widths": (16, 32, 64),
+        "position_widths": (8, 16, 32),
+        "direction_widths": (8, 16, 32),
         "embedding": 32,
         "action_embedding": 16,
         "num_envs": 16,
         "replay_size": 6400,
-        "epochs": 400,
+        "epochs": 300,
         "position_decay_epochs": 200,
         "direction_decay_epochs": 300,
         "seq_start": 4,

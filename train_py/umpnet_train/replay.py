@@ -1,0 +1,91 @@
+"""FIFO replay buffers (the paper: 6400 samples) with balanced sampling.
+
+Images are stored as float16 to halve memory; each direction sample points
+to its sequence's reference image, which lives in a ring of its own that
+turns over more slowly than the samples that use it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class Ring:
+    def __init__(self, capacity: int):
+        self.capacity, self.size, self.next = capacity, 0, 0
+        self.generation = np.full(capacity, -1, dtype=np.int64)
+        self.count = 0
+
+    def slot(self) -> tuple[int, int]:
+        i = self.next
+        self.generation[i] = self.count
+        self.count += 1
+        self.next = (self.next + 1) % self.capacity
+        self.size = min(self.size + 1, self.capacity)
+        return i, int(self.generation[i])
+
+
+class Replay:
+    def __init__(self, capacity: int, shape: tuple[int, int, int]):
+        h, w, c = shape
+        self.refs = Ring(capacity)
+        self.ref_images = np.zeros((capacity, h, w, c), np.float16)
+        # Positions: the image the pixel was chosen on, the pixel, success.
+        self.pos = Ring(capacity)
+        self.pos_images = np.zeros((capacity, h, w, c), np.float16)
+        self.pos_pixels = np.zeros((capacity, 2), np.int64)
+        self.pos_labels = np.zeros(capacity, np.int64)
+        # Directions: image before the action, gripper pixel, direction, labels, reference slot.
+        self.dir = Ring(capacity)
+        self.dir_images = np.zeros((capacity, h, w, c), np.float16)
+        self.dir_pixels = np.zeros((capacity, 2), np.int64)
+        self.dir_vectors = np.zeros((capacity, 3), np.float32)
+        self.dir_dist = np.zeros(capacity, np.float32)
+        self.dir_aot = np.zeros(capacity, np.int64)
+        self.dir_ref = np.zeros(capacity, np.int64)
+        self.dir_ref_gen = np.zeros(capacity, np.int64)
+
+    def add_reference(self, image) -> tuple[int, int]:
+        i, g = self.refs.slot()
+        self.ref_images[i] = image
+        return i, g
+
+    def add_position(self, image, pixel, label: int):
+        i, _ = self.pos.slot()
+        self.pos_images[i], self.pos_pixels[i], self.pos_labels[i] = image, pixel, label
+
+    def add_direction(self, image, pixel, direction, r_dist: float, aot: int, ref: tuple[int, int]):
+        i, _ = self.dir.slot()
+        self.dir_images[i], self.dir_pixels[i], self.dir_vectors[i] = image, pixel, direction
+        self.dir_dist[i], self.dir_aot[i] = r_dist, aot
+        self.dir_ref[i], self.dir_ref_gen[i] = ref
+
+    def sample_positions(self, rng: np.random.Generator, batch: int):
+        """Balanced 1:1 successful/unsuccessful positions (as far as the buffer allows)."""
+        n = self.pos.size
+        labels = self.pos_labels[:n]
+        idx = _balanced(rng, [np.flatnonzero(labels == k) for k in (1, 0)], batch)
+        return self.pos_images[idx], self.pos_pixels[idx], self.pos_labels[idx]
+
+    def sample_directions(self, rng: np.random.Generator, batch: int):
+        """Balanced 1:1:1 over AoT classes, skipping samples whose reference was overwritten."""
+        n = self.dir.size
+        alive = self.refs.generation[self.dir_ref[:n]] == self.dir_ref_gen[:n]
+        groups = [np.flatnonzero(alive & (self.dir_aot[:n] == k)) for k in (-1, 0, 1)]
+        idx = _balanced(rng, groups, batch)
+        return (
+            self.dir_images[idx],
+            self.ref_images[self.dir_ref[idx]],
+            self.dir_pixels[idx],
+            self.dir_vectors[idx],
+            self.dir_dist[idx],
+            self.dir_aot[idx],
+        )
+
+
+def _balanced(rng: np.random.Generator, groups: list[np.ndarray], batch: int) -> np.ndarray:
+    groups = [g for g in groups if len(g)]
+    if not groups:
+        return np.zeros(0, np.int64)
+    per = [batch // len(groups) + (1 if k < batch % len(groups) else 0) for k in range(len(groups))]
+    return np.concatenate([rng.choice(g, size=m, replace=len(g) < m) for g, m in zip(groups, per, strict=True)])

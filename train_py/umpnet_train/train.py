@@ -1,0 +1,355 @@
+"""Train UMPNet against the umpnet Rust environments, the paper's way:
+self-guided exploration with epsilon-greedy position/direction choices, a
+contradictory policy (first half of a sequence pushes forward, second half
+back), a growing sequence length, FIFO replay, balanced batches, and the
+loss 100 x MSE(distance) + CE(AoT) (+ CE(position)).
+
+    python -m umpnet_train.train --preset cpu-small --out ../runs/small --export ../models/umpnet-small
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+import umpnet
+from torch.utils.tensorboard import SummaryWriter
+from tqdm import tqdm
+
+from .config import Config, make_config
+from .export import export_model
+from .models import UMPNet
+from .replay import Replay
+
+OBJECT_SEGMENT = 1 << 16  # segment ids of object links start here
+TRAIN_CATEGORIES = [
+    "Refrigerator", "FoldingChair", "Laptop", "Stapler", "TrashCan", "Microwave",
+    "Toilet", "Window", "StorageFurniture", "Switch", "Kettle", "Toy",
+]  # fmt: skip
+
+
+def linear(start: float, end: float, epochs: int, epoch: int) -> float:
+    return end if epoch >= epochs else start + (end - start) * epoch / max(epochs, 1)
+
+
+def sequence_length(cfg: Config, epoch: int) -> int:
+    if epoch < cfg.seq_after:
+        return cfg.seq_start
+    return min(cfg.seq_max, cfg.seq_start + cfg.seq_step * (1 + (epoch - cfg.seq_after) // cfg.seq_every))
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True).clip(1e-8)
+
+
+DEVICE = torch.device("cpu")
+
+
+def to_torch(x: np.ndarray) -> torch.Tensor:
+    return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32)).to(DEVICE)
+
+
+def to_long(x: np.ndarray) -> torch.Tensor:
+    return torch.from_numpy(np.ascontiguousarray(x, dtype=np.int64)).to(DEVICE)
+
+
+@torch.no_grad()
+def choose_positions(model, obs, eps, rng):
+    """Greedy: best affordance among pixels with depth; else a random object pixel."""
+    n, _, w, _ = obs["image"].shape
+    prob = torch.softmax(model.position(to_torch(obs["image"])), dim=1)[:, 1].cpu().numpy()
+    prob[obs["image"][..., 9] <= 0] = -1.0
+    pixels = np.zeros((n, 2), np.int64)
+    for i in range(n):
+        mask = np.flatnonzero(obs["segmentation"][i].ravel() >= OBJECT_SEGMENT)
+        if rng.random() < eps and len(mask):
+            k = rng.choice(mask)
+        else:
+            k = int(prob[i].argmax())
+        pixels[i] = divmod(int(k), w)
+    return pixels
+
+
+@torch.no_grad()
+def choose_directions(model, variant, obs, wanted, eps, rng, candidates=64):
+    """Greedy: among random candidates, the largest predicted distance with the
+    wanted AoT (+1 forward, -1 back); else a uniformly random direction."""
+    n = obs["image"].shape[0]
+    pix = to_long(obs["gripper_pixel"].clip(min=0))
+    de, ae = model.encoder(to_torch(obs["image"]), to_torch(obs["reference"]), pix)
+    cand = unit(rng.normal(size=(n, candidates, 3))).astype(np.float32)
+    dist, logits = model.decoder(
+        de.repeat_interleave(candidates, 0), ae.repeat_interleave(candidates, 0), to_torch(cand.reshape(-1, 3))
+    )
+    dist = dist.view(n, candidates).cpu().numpy()
+    probs = torch.softmax(logits, 1).view(n, candidates, 3).cpu().numpy()
+    out = unit(rng.normal(size=(n, 3))).astype(np.float32)
+    for i in range(n):
+        if rng.random() < eps:
+            continue
+        k = {1: 2, -1: 0}[int(wanted[i])]
+        if variant == "aot-only":
+            score = probs[i, :, k]
+        elif variant == "signed-dist":
+            score = dist[i] * wanted[i]
+        else:
+            score = np.where(probs[i].argmax(1) == k, dist[i], -np.inf)
+        if np.isfinite(score.max()):
+            out[i] = cand[i, int(score.argmax())]
+    return out
+
+
+def collect(env, model, cfg, replay, epoch, rng, stats):
+    """One sequence per environment: a position, then L directions."""
+    model.eval()
+    t0 = time.perf_counter()
+    obs = env.reset()
+    stats["sim_s"] += time.perf_counter() - t0
+    refs = [replay.add_reference(obs["reference"][i]) for i in range(len(env))]
+    eps_pos = linear(*cfg.position_epsilon, cfg.position_decay_epochs, epoch)
+    eps_dir = linear(*cfg.direction_epsilon, cfg.direction_decay_epochs, epoch)
+    pixels = choose_positions(model, obs, eps_pos, rng)
+    first = obs["image"]
+    t0 = time.perf_counter()
+    obs, info = env.step_position(pixels)
+    stats["sim_s"] += time.perf_counter() - t0
+    valid = np.array(info["valid"])
+    moved_any = np.zeros(len(env), bool)
+    length = sequence_length(cfg, epoch)
+    for t in range(length):
+        if not valid.any():
+            break
+        # The contradictory policy: forward in the first half, back in the second.
+        wanted = np.full(len(env), 1 if t < (length + 1) // 2 else -1)
+        dirs = choose_directions(model, cfg.variant, obs, wanted, eps_dir, rng)
+        before = obs
+        t0 = time.perf_counter()
+        obs, labels, sinfo = env.step_direction(dirs)
+        stats["sim_s"] += time.perf_counter() - t0
+        for i in np.flatnonzero(sinfo["active"]):
+            replay.add_direction(
+                before["image"][i], before["gripper_pixel"][i], dirs[i], labels["r_dist"][i], labels["aot"][i], refs[i]
+            )
+            moved_any[i] |= bool(labels["moved"][i])
+            stats["aot_counts"][int(labels["aot"][i]) + 1] += 1
+    for i in range(len(env)):
+        replay.add_position(first[i], pixels[i], int(valid[i] and moved_any[i]))
+    stats["positions"] += len(env)
+    stats["position_success"] += int((valid & moved_any).sum())
+    stats["steps"] += int(valid.sum()) * length
+
+
+def losses(model, cfg, replay, rng):
+    out = {}
+    imgs, pix, lab = replay.sample_positions(rng, cfg.batch_position)
+    total = torch.zeros((), device=DEVICE)
+    if len(lab):
+        logits = model.position(to_torch(imgs))
+        at = logits[torch.arange(len(lab), device=DEVICE), :, to_long(pix[:, 0]), to_long(pix[:, 1])]
+        target = to_long(lab)
+        out["loss/position"] = F.cross_entropy(at, target)
+        pred = at.argmax(1)
+        tp, fp = int(((pred == 1) & (target == 1)).sum()), int(((pred == 1) & (target == 0)).sum())
+        out["metric/position_precision"] = torch.tensor(tp / max(tp + fp, 1))
+        total = total + out["loss/position"]
+    batch = replay.sample_directions(rng, cfg.batch_direction)
+    imgs, refs, pix, dirs, dist, aot = batch
+    if len(aot):
+        pred_dist, logits = model.direction(to_torch(imgs), to_torch(refs), to_long(pix), to_torch(dirs))
+        aot_t = to_long(aot + 1)
+        if cfg.variant == "signed-dist":
+            out["loss/dist"] = F.mse_loss(pred_dist, to_torch(dist * aot.astype(np.float32)))
+            total = total + cfg.dist_loss_weight * out["loss/dist"]
+        else:
+            out["loss/aot"] = F.cross_entropy(logits, aot_t)
+            out["metric/aot_accuracy"] = (logits.argmax(1) == aot_t).float().mean()
+            total = total + out["loss/aot"]
+            if cfg.variant != "aot-only":
+                out["loss/dist"] = F.mse_loss(pred_dist, to_torch(dist))
+                total = total + cfg.dist_loss_weight * out["loss/dist"]
+    out["loss/total"] = total
+    return out
+
+
+def git_commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--preset", default="cpu-small", help="paper, cpu-small or smoke")
+    p.add_argument("--out", type=Path, required=True, help="run directory: checkpoints and TensorBoard logs")
+    p.add_argument("--export", type=Path, help="write the final model package here")
+    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
+    p.add_argument("--variant", choices=["umpnet", "single-step", "aot-only", "signed-dist"])
+    p.add_argument("--epochs", type=int)
+    p.add_argument("--seed", type=int)
+    p.add_argument("--num-envs", type=int)
+    p.add_argument("--threads", type=int)
+    p.add_argument("--eval-every", type=int, help="epochs between `umpnet eval` runs (0: never)")
+    p.add_argument("--renderer", choices=["auto", "wgpu", "cpu"])
+    p.add_argument("--device", help="auto, cpu or cuda")
+    a = p.parse_args(argv)
+    cfg = make_config(
+        a.preset,
+        variant=a.variant,
+        epochs=a.epochs,
+        seed=a.seed,
+        num_envs=a.num_envs,
+        threads=a.threads,
+        eval_every=a.eval_every,
+        renderer=a.renderer,
+        device=a.device,
+    )
+    return cfg, a
+
+
+def evaluate(model, cfg, out: Path, umpnet_bin: str, writer, epoch: int):
+    package = out / "eval-package"
+    copy = UMPNet(cfg)
+    copy.load_state_dict({k: v.cpu() for k, v in model.state_dict().items()})
+    export_model(copy, cfg, package, {"note": "periodic evaluation"})
+    for task in ["exploration", "goal"]:
+        res = subprocess.run(
+            [umpnet_bin, "--json", "eval", "--task", task, "--split", "train", "--episodes-per-category", "5",
+             "--policies", f"umpnet={package}"],
+            capture_output=True, text=True, check=False,
+        )  # fmt: skip
+        if res.returncode != 0:
+            print(f"warning: evaluation failed: {res.stderr.strip()}", file=sys.stderr)
+            continue
+        cells = json.loads(res.stdout)["cells"]
+        for metric in {c["metric"] for c in cells}:
+            values = [c["mean"] for c in cells if c["metric"] == metric]
+            writer.add_scalar(f"eval/{task}/{metric}", float(np.mean(values)), epoch)
+
+
+def main(argv=None) -> int:
+    cfg, args = parse_args(argv)
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(cfg.seed)
+    torch.set_num_threads(cfg.threads)
+    rng = np.random.default_rng(cfg.seed)
+    global DEVICE
+    DEVICE = torch.device(
+        "cuda" if cfg.device == "auto" and torch.cuda.is_available() else cfg.device.replace("auto", "cpu")
+    )
+    model = UMPNet(cfg).to(DEVICE)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_decay_every, gamma=cfg.lr_decay)
+    start, wall_before = 0, 0.0
+    ckpt_path = out / "checkpoint.pt"
+    if args.resume:
+        if not ckpt_path.is_file():
+            print(f"error: --resume: {ckpt_path} does not exist", file=sys.stderr)
+            return 2
+        ck = torch.load(ckpt_path, map_location=DEVICE, weights_only=False)
+        if ck["config"] != dataclasses.asdict(cfg):
+            print("warning: resuming with a configuration different from the checkpoint's", file=sys.stderr)
+        model.load_state_dict(ck["model"])
+        opt.load_state_dict(ck["optimizer"])
+        sched.load_state_dict(ck["scheduler"])
+        rng.bit_generator.state = ck["numpy_rng"]
+        torch.set_rng_state(ck["torch_rng"])
+        start, wall_before = ck["epoch"], ck["provenance"]["wall_seconds"]
+        print(f"resumed at epoch {start} (the replay buffer starts empty)")
+    categories = cfg.categories or TRAIN_CATEGORIES
+    env = umpnet.VecEnv(
+        cfg.num_envs,
+        category=categories,
+        split="train",
+        seed=cfg.seed * 1000 + start,
+        resolution=(cfg.height, cfg.width),
+        renderer=cfg.renderer,
+    )
+    replay = Replay(cfg.replay_size, (cfg.height, cfg.width, 10))
+    writer = SummaryWriter(str(out / "tb"))
+    umpnet_bin = str(Path(__file__).resolve().parents[2] / "target" / "release" / "umpnet")
+    command = "python -m umpnet_train.train " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    stats = {"sim_s": 0.0, "learn_s": 0.0, "positions": 0, "position_success": 0, "steps": 0, "aot_counts": [0, 0, 0]}
+    t_start = time.perf_counter()
+
+    def provenance(epoch):
+        wall = wall_before + time.perf_counter() - t_start
+        return {
+            "command": command,
+            "seed": cfg.seed,
+            "preset": args.preset,
+            "git_commit": git_commit(),
+            "epochs": epoch,
+            "wall_seconds": wall,
+            "simulation_share": stats["sim_s"] / max(stats["sim_s"] + stats["learn_s"], 1e-9),
+            "trained_on": {"categories": categories, "split": "train instances"},
+            "torch": torch.__version__,
+        }
+
+    bar = tqdm(
+        range(start, cfg.epochs), initial=start, total=cfg.epochs, desc="epochs", disable=not sys.stderr.isatty()
+    )
+    for epoch in bar:
+        collect(env, model, cfg, replay, epoch, rng, stats)
+        model.train()
+        t0 = time.perf_counter()
+        for _ in range(cfg.iterations_per_epoch):
+            out_l = losses(model, cfg, replay, rng)
+            opt.zero_grad()
+            out_l["loss/total"].backward()
+            opt.step()
+        sched.step()
+        stats["learn_s"] += time.perf_counter() - t0
+        for k, v in out_l.items():
+            writer.add_scalar(k, float(v.detach()), epoch)
+        writer.add_scalar(
+            "collect/position_success_rate", stats["position_success"] / max(stats["positions"], 1), epoch
+        )
+        writer.add_scalar("collect/sequence_length", sequence_length(cfg, epoch), epoch)
+        share = stats["sim_s"] / max(stats["sim_s"] + stats["learn_s"], 1e-9)
+        writer.add_scalar("time/simulation_share", share, epoch)
+        bar.set_postfix(loss=f"{float(out_l['loss/total'].detach()):.3f}", sim=f"{share:.0%}")
+        if (epoch + 1) % cfg.checkpoint_every == 0 or epoch + 1 == cfg.epochs:
+            ck = {
+                "config": dataclasses.asdict(cfg),
+                "model": model.state_dict(),
+                "optimizer": opt.state_dict(),
+                "scheduler": sched.state_dict(),
+                "numpy_rng": rng.bit_generator.state,
+                "torch_rng": torch.get_rng_state(),
+                "epoch": epoch + 1,
+                "provenance": provenance(epoch + 1),
+            }
+            torch.save(ck, out / "checkpoint.tmp")
+            (out / "checkpoint.tmp").replace(ckpt_path)  # never leaves a half-written checkpoint
+        if cfg.eval_every and (epoch + 1) % cfg.eval_every == 0:
+            evaluate(model, cfg, out, umpnet_bin, writer, epoch + 1)
+        if not sys.stderr.isatty() and (epoch + 1) % 10 == 0:
+            print(
+                f"epoch {epoch + 1}/{cfg.epochs} loss {float(out_l['loss/total'].detach()):.4f} sim share {share:.0%}",
+                flush=True,
+            )
+    writer.close()
+    prov = provenance(cfg.epochs)
+    print(
+        f"trained {cfg.epochs} epochs in {prov['wall_seconds']:.0f} s; simulation {prov['simulation_share']:.0%} of the time"
+    )
+    print(f"AoT labels collected (-1, 0, +1): {stats['aot_counts']}")
+    if args.export:
+        worst = export_model(model.cpu(), cfg, args.export, prov)
+        print(f"exported {args.export} (max |ONNX - PyTorch| = {worst:.2e})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
