@@ -42,7 +42,7 @@ test-rust: fixture
 	UMPNET_REQUIRE_WGPU=1 cargo test --release
 
 test-python: build py fixture
-	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests crates/py/tests
+	UMPNET_BIN=$(UMPNET) PYTHONPATH=train_py $(PY) -m pytest -q tests crates/py/tests train_py/tests
 
 test: lint test-rust test-python
 

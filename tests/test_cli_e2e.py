@@ -105,3 +105,25 @@ def test_broken_object_file_exits_1_naming_the_file(tmp_path):
     assert p.returncode == 1
     assert str(bad) in p.stderr and "child link `missing` does not exist" in p.stderr
     assert p.stderr.count("\n") == 1
+
+
+@pytest.mark.skipif(not os.environ.get("UMPNET_FIXTURE"), reason="UMPNET_FIXTURE not set (make test sets it)")
+def test_learned_policy_episode_and_infer(tmp_path):
+    fixture = os.environ["UMPNET_FIXTURE"]
+    out = json.loads(run("--json", "explore", "--category", "Door", "--policy", "umpnet", "--model", fixture).stdout)
+    assert out["policy"] == "umpnet"
+    run("render", "--category", "Microwave", "--seed", "3", "--resolution", "96x128", "--out", str(tmp_path))
+    cam = json.loads((tmp_path / "camera.json").read_text())
+    k = cam["intrinsics"]
+    pose = ",".join(str(v) for row in cam["world_from_camera"] for v in row)
+    res = json.loads(
+        run(
+            "infer", "--rgb", str(tmp_path / "color.png"), "--depth", str(tmp_path / "depth.npy"),
+            "--intrinsics", f"{k['fx']},{k['fy']},{k['cx']},{k['cy']}", "--camera-pose", pose, "--model", fixture,
+        ).stdout
+    )  # fmt: skip
+    assert len(res["pixel"]) == 2 and res["mode"] == "explore"
+    assert res["direction"] is None or abs(sum(v * v for v in res["direction"]) - 1) < 1e-4
+    bad = run("infer", "--rgb", str(tmp_path / "color.png"), "--depth", str(tmp_path / "depth.npy"),
+              "--intrinsics", "1,2", "--camera-pose", pose, "--model", fixture, check=False)  # fmt: skip
+    assert bad.returncode == 2 and "--intrinsics" in bad.stderr

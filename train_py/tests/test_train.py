@@ -1,0 +1,89 @@
+"""The training pipeline end to end on the smoke preset: train, checkpoint,
+resume, export, and load the package from Rust."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import umpnet
+from umpnet_train import train
+from umpnet_train.config import make_config
+from umpnet_train.replay import Replay
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_presets_and_config_errors():
+    cfg = make_config("paper")
+    assert (cfg.height, cfg.width, cfg.replay_size, cfg.batch_direction) == (480, 640, 6400, 24)
+    assert cfg.dist_loss_weight == 100.0
+    with pytest.raises(ValueError, match="unknown preset"):
+        make_config("huge")
+    with pytest.raises(ValueError, match="unknown config fields"):
+        make_config("smoke", lr_typo=1.0)
+
+
+def test_curriculum_and_schedules():
+    cfg = make_config("paper")
+    assert train.sequence_length(cfg, 0) == 4 and train.sequence_length(cfg, 999) == 4
+    assert train.sequence_length(cfg, 1000) == 6 and train.sequence_length(cfg, 1400) == 8
+    assert train.sequence_length(cfg, 10**6) == 20
+    assert train.linear(1.0, 0.1, 300, 0) == 1.0 and abs(train.linear(1.0, 0.1, 300, 150) - 0.55) < 1e-9
+    assert train.linear(1.0, 0.1, 300, 301) == 0.1
+
+
+def test_replay_balances_classes_and_drops_stale_references():
+    r = Replay(8, (2, 2, 10))
+    img = np.zeros((2, 2, 10), np.float32)
+    ref = r.add_reference(img)
+    for k, aot in enumerate([1, 1, 1, 1, 0, -1]):
+        r.add_direction(img, [0, 0], [1, 0, 0], 0.2 * k, aot, ref)
+    rng = np.random.default_rng(0)
+    *_, aot = r.sample_directions(rng, 24)
+    assert sorted(set(aot.tolist())) == [-1, 0, 1] and (aot == 1).sum() == 8
+    for _ in range(8):  # overwrite the reference: every sample now points at a stale one
+        r.add_reference(img)
+    assert len(r.sample_directions(rng, 24)[-1]) == 0
+
+
+def test_smoke_training_resume_export_and_rust_load(tmp_path):
+    out = tmp_path / "run"
+    pkg = tmp_path / "package"
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "2"]) == 0
+    ck = out / "checkpoint.pt"
+    assert ck.is_file()
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "3", "--resume", "--export", str(pkg)]) == 0
+    meta = json.loads((pkg / "model.json").read_text())
+    assert meta["provenance"]["epochs"] == 3 and meta["provenance"]["seed"] == 0
+    assert meta["export_check"]["max_abs_diff_onnx_vs_torch"] < 1e-3
+    pol = umpnet.Policy(str(pkg))
+    assert pol.resolution == (48, 64)
+    umpnet_bin = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
+    res = subprocess.run(
+        [umpnet_bin, "--json", "explore", "--category", "Door", "--policy", f"smoke={pkg}", "--steps", "2"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout)["policy"] == "smoke"
+
+
+def test_resume_without_checkpoint_is_an_error(tmp_path, capsys):
+    assert train.main(["--preset", "smoke", "--out", str(tmp_path), "--resume"]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_export_cli_rejects_missing_checkpoint(tmp_path):
+    res = subprocess.run(
+        [sys.executable, "-m", "umpnet_train.export", str(tmp_path / "nope.pt"), str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=ROOT / "train_py",
+    )
+    assert res.returncode == 2 and "no such checkpoint" in res.stderr
