@@ -23,14 +23,17 @@ py: install
 fixture: install
 	cd train_py && ../.venv/bin/python -m umpnet_train.fixture $(FIXTURE)
 
+# The main job on the shipped defaults: the learned policy (models/umpnet-small)
+# with pictures, then the benchmark against oracle and random, then speed figures.
 demo: build
 	$(UMPNET) objects generate --out data/objects --per-category 20
-	$(UMPNET) explore --category StorageFurniture --seed 1 --policy oracle --out out/explore
-	$(UMPNET) goal --category Microwave --seed 3 --policy oracle --out out/goal
-	$(UMPNET) eval --task exploration --episodes-per-category 10 --policies oracle,random --out out/eval-exploration
-	$(UMPNET) eval --task goal --episodes-per-category 10 --policies oracle,random --out out/eval-goal
+	$(UMPNET) explore --category Microwave --seed 3 --policy umpnet --out out/explore-umpnet
+	$(UMPNET) goal --category Door --seed 2 --policy umpnet --out out/goal-umpnet
+	$(UMPNET) explore --category StorageFurniture --seed 1 --policy oracle --out out/explore-oracle
+	$(UMPNET) eval --task exploration --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-exploration
+	$(UMPNET) eval --task goal --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-goal
 	$(UMPNET) bench --frames 20 --actions 100
-	@echo "pictures and results in out/"
+	@echo "pictures, tables and plots in out/"
 
 lint: install
 	cargo fmt --all --check

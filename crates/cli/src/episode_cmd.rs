@@ -90,25 +90,13 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         ep.policy,
         a.object.seed
     );
-    let joint_name = ep.joint.map(|j| {
-        format!(
-            "joint `{}`",
-            ep.steps
-                .first()
-                .map(|_| j)
-                .map(|j| j.to_string())
-                .unwrap_or_default()
-        )
-    });
+    let grasped = match (ep.valid_position, ep.joint) {
+        (true, Some(j)) => format!("joint {j} (moves the link under the pixel)"),
+        _ => "no valid link: episode ends".into(),
+    };
     println!(
-        "position: pixel (row {}, col {}) -> {}",
-        ep.pixel.0,
-        ep.pixel.1,
-        if ep.valid_position {
-            joint_name.unwrap_or_default()
-        } else {
-            "no valid link: episode ends".into()
-        }
+        "position: pixel (row {}, col {}) -> {grasped}",
+        ep.pixel.0, ep.pixel.1
     );
     println!(
         "{:>4}  {:>24}  {:>9}  {:>9}  {:>4}",

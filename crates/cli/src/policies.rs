@@ -61,7 +61,7 @@ pub fn resolve(specs: &[String], model: Option<&Path>, sessions: usize) -> Resul
                         dir.display()
                     )));
                 }
-                let pkg = LearnedPolicy::load(&name, &dir, sessions)
+                let pkg = LearnedPolicy::load(&dir, sessions)
                     .with_context(|| format!("loading policy `{name}`"))?;
                 let r = (pkg.meta.input.height as u32, pkg.meta.input.width as u32);
                 if let Some(prev) = resolution.filter(|p| *p != r) {

@@ -68,8 +68,8 @@ impl LearnedPolicy {
         }
     }
 
-    pub fn load(name: &str, dir: &Path, sessions: usize) -> Result<Arc<ModelPackage>> {
-        let _ = name;
+    /// Loads a package with `sessions` concurrent session sets (one per worker thread).
+    pub fn load(dir: &Path, sessions: usize) -> Result<Arc<ModelPackage>> {
         Ok(Arc::new(ModelPackage::load(dir, sessions, 1, None)?))
     }
 

@@ -273,3 +273,24 @@ fn scripted_back_and_forth_gives_the_defined_aot_labels() {
         jm.upper - jm.lower
     );
 }
+
+#[test]
+fn generated_files_are_plain_urdf_that_urdf_rs_reads_without_mending() {
+    let dir = tempfile::tempdir().unwrap();
+    for &c in Category::ALL {
+        let obj = generate(c, 1, 0);
+        let path = obj.write(dir.path()).unwrap();
+        let robot = urdf_rs::read_file(&path).unwrap_or_else(|e| panic!("{c}: {e}"));
+        assert!(robot.joints.iter().any(|j| matches!(
+            j.joint_type,
+            urdf_rs::JointType::Revolute | urdf_rs::JointType::Prismatic
+        )));
+        assert!(
+            robot.links.iter().all(|l| l.inertial.mass.value > 0.0),
+            "{c}: every link has an inertial"
+        );
+        // And it loads back through our loader from disk, meshes included.
+        let m = umpnet_sim::urdf::load_urdf(&path).unwrap();
+        assert_eq!(m.links.len(), robot.links.len());
+    }
+}

@@ -1,0 +1,48 @@
+//! Normals estimated from depth (what a real camera allows) against the
+//! renderer's exact ones, on every category: the measurement behind the choice.
+use rand::SeedableRng;
+use umpnet_eval::bench::benchmark_scene;
+use umpnet_eval::learned::observation_tensor;
+use umpnet_sim::camera::Camera;
+use umpnet_sim::env::SimEnv;
+use umpnet_sim::objects::Category;
+use umpnet_sim::render::{CpuRenderer, SEG_OBJECT_BASE};
+use umpnet_sim::scene::Task;
+
+#[test]
+fn estimated_normals_agree_with_exact_ones() {
+    let _ = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let mut angles = Vec::new();
+    for &c in Category::ALL {
+        let scene = benchmark_scene(0, Task::Exploration, c, 0, 0).unwrap();
+        let mut env = SimEnv::new(
+            scene,
+            Camera::reference(120, 160),
+            Box::new(CpuRenderer::default()),
+        )
+        .unwrap();
+        let f = env.render().unwrap();
+        let obs = observation_tensor(&f).unwrap();
+        for r in 0..f.height as usize {
+            for col in 0..f.width as usize {
+                let i = r * f.width as usize + col;
+                if f.segmentation[i] < SEG_OBJECT_BASE {
+                    continue;
+                }
+                let exact = f.normal_in_world[i];
+                let est = [obs[[r, col, 6]], obs[[r, col, 7]], obs[[r, col, 8]]];
+                let dot: f32 = exact.iter().zip(est).map(|(a, b)| a * b).sum();
+                angles.push(dot.clamp(-1.0, 1.0).acos().to_degrees());
+            }
+        }
+    }
+    angles.sort_by(f32::total_cmp);
+    let median = angles[angles.len() / 2];
+    let p90 = angles[angles.len() * 9 / 10];
+    eprintln!(
+        "normals from depth vs exact, {} object pixels: median {median:.2} deg, p90 {p90:.2} deg",
+        angles.len()
+    );
+    assert!(median < 2.0, "median angle {median} deg");
+    assert!(p90 < 30.0, "90th percentile {p90} deg");
+}
