@@ -87,3 +87,19 @@ def test_export_cli_rejects_missing_checkpoint(tmp_path):
         cwd=ROOT / "train_py",
     )
     assert res.returncode == 2 and "no such checkpoint" in res.stderr
+
+
+@pytest.mark.parametrize("variant", ["single-step", "aot-only", "signed-dist"])
+def test_baseline_variants_export_packages_the_runtime_accepts(tmp_path, variant):
+    pkg = tmp_path / "package"
+    args = ["--preset", "smoke", "--epochs", "1", "--variant", variant, "--out", str(tmp_path), "--export", str(pkg)]
+    assert train.main(args) == 0
+    meta = json.loads((pkg / "model.json").read_text())
+    assert meta["variant"] == variant and meta["uses_reference"] == (variant != "single-step")
+    pol = umpnet.Policy(str(pkg))
+    h, w = pol.resolution
+    rng = np.random.default_rng(0)
+    img = rng.normal(size=(2, h, w, 10)).astype(np.float32)
+    out = pol.direction_batch(img, img, np.array([[1, 2], [3, 4]]), mode="goal")
+    assert len(out) == 2 and all(len(o["distance"]) >= 64 for o in out)
+    assert all(d >= 0 for o in out for d in o["distance"])

@@ -48,10 +48,12 @@ class DecoderExport(nn.Module):
 
     def forward(self, dist_embedding, aot_embedding, direction):
         distance, logits = self.dec(dist_embedding, aot_embedding, direction)
+        # Variants that ignore one embedding still take it: the contract has three inputs
+        # and the exporter would otherwise prune the unused one.
         if self.variant == "aot-only":
-            return torch.softmax(logits, dim=1)
+            return torch.softmax(logits, dim=1) + 0.0 * dist_embedding.sum(dim=1, keepdim=True)
         if self.variant == "signed-dist":
-            return distance
+            return distance + 0.0 * aot_embedding.sum(dim=1)
         return distance, torch.softmax(logits, dim=1)
 
 
