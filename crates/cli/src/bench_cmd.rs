@@ -104,13 +104,14 @@ fn largest_object() -> (Category, u32, usize) {
     best
 }
 
+/// Median (render + readback, 10-channel tensor, both) in ms.
 fn observation_ms(
     category: Category,
     instance: u32,
     res: (u32, u32),
     kind: RendererKind,
     frames: usize,
-) -> Result<(f64, String)> {
+) -> Result<((f64, f64, f64), String)> {
     let args = crate::ObjectArgs {
         category: Some(category),
         object: None,
@@ -119,21 +120,20 @@ fn observation_ms(
         dataset_seed: 0,
     };
     let scene = args.scene(Task::Exploration)?;
-    let mut env = SimEnv::new(
-        scene,
-        Camera::reference(res.0, res.1),
-        create_renderer(kind)?,
-    )?;
+    let mut env = SimEnv::new(scene, Camera::reference(res.0, res.1), create_renderer(kind)?)?;
     let _ = env.render()?; // warm-up
-    let mut times = Vec::with_capacity(frames);
+    let (mut render, mut tensor, mut total) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..frames {
         let t = Instant::now();
         let f = env.render()?;
+        let t1 = Instant::now();
         let obs = build_observation(&camera_frame(&f))?;
         std::hint::black_box(obs);
-        times.push(t.elapsed().as_secs_f64() * 1e3);
+        render.push((t1 - t).as_secs_f64() * 1e3);
+        tensor.push(t1.elapsed().as_secs_f64() * 1e3);
+        total.push(t.elapsed().as_secs_f64() * 1e3);
     }
-    Ok((median(times), env.renderer_name()))
+    Ok(((median(render), median(tensor), median(total)), env.renderer_name()))
 }
 
 pub fn run(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
@@ -166,13 +166,13 @@ pub fn run(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
                 (Category::StorageFurniture, cab_i, "cabinet".to_string()),
                 (big, big_i, format!("largest ({big}, {tris} triangles)")),
             ] {
-                let (ms, name) = observation_ms(c, i, res, kind, frames)?;
+                let ((render_ms, tensor_ms, ms), name) = observation_ms(c, i, res, kind, frames)?;
                 let target = match (kind, res.0) {
                     (RendererKind::Wgpu, 480) => Some(15.0),
                     (RendererKind::Wgpu, _) => Some(3.0),
                     _ => None,
                 };
-                rows.push(serde_json::json!({"figure": format!("observation {}x{}", res.0, res.1), "object": label, "renderer": name, "median_ms": ms, "target_ms": target}));
+                rows.push(serde_json::json!({"figure": format!("observation {}x{}", res.0, res.1), "object": label, "renderer": name, "median_ms": ms, "render_ms": render_ms, "tensor_ms": tensor_ms, "target_ms": target}));
             }
         }
     }
