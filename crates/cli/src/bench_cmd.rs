@@ -120,7 +120,11 @@ fn observation_ms(
         dataset_seed: 0,
     };
     let scene = args.scene(Task::Exploration)?;
-    let mut env = SimEnv::new(scene, Camera::reference(res.0, res.1), create_renderer(kind)?)?;
+    let mut env = SimEnv::new(
+        scene,
+        Camera::reference(res.0, res.1),
+        create_renderer(kind)?,
+    )?;
     let _ = env.render()?; // warm-up
     let (mut render, mut tensor, mut total) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..frames {
@@ -133,7 +137,10 @@ fn observation_ms(
         tensor.push(t1.elapsed().as_secs_f64() * 1e3);
         total.push(t.elapsed().as_secs_f64() * 1e3);
     }
-    Ok(((median(render), median(tensor), median(total)), env.renderer_name()))
+    Ok((
+        (median(render), median(tensor), median(total)),
+        env.renderer_name(),
+    ))
 }
 
 pub fn run(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
