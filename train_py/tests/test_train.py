@@ -89,13 +89,13 @@ def test_export_cli_rejects_missing_checkpoint(tmp_path):
     assert res.returncode == 2 and "no such checkpoint" in res.stderr
 
 
-@pytest.mark.parametrize("variant", ["single-step", "aot-only", "signed-dist"])
+@pytest.mark.parametrize("variant", ["single-step", "aot-only", "signed-dist", "where2act"])
 def test_baseline_variants_export_packages_the_runtime_accepts(tmp_path, variant):
     pkg = tmp_path / "package"
     args = ["--preset", "smoke", "--epochs", "1", "--variant", variant, "--out", str(tmp_path), "--export", str(pkg)]
     assert train.main(args) == 0
     meta = json.loads((pkg / "model.json").read_text())
-    assert meta["variant"] == variant and meta["uses_reference"] == (variant != "single-step")
+    assert meta["variant"] == variant and meta["uses_reference"] == (variant not in ("single-step", "where2act"))
     pol = umpnet.Policy(str(pkg))
     h, w = pol.resolution
     rng = np.random.default_rng(0)
@@ -103,3 +103,26 @@ def test_baseline_variants_export_packages_the_runtime_accepts(tmp_path, variant
     out = pol.direction_batch(img, img, np.array([[1, 2], [3, 4]]), mode="goal")
     assert len(out) == 2 and all(len(o["distance"]) >= 64 for o in out)
     assert all(d >= 0 for o in out for d in o["distance"])
+
+
+def test_where2act_filter_keeps_directions_within_90_degrees_of_the_normal(tmp_path):
+    pkg = tmp_path / "package"
+    args = ["--preset", "smoke", "--epochs", "1", "--variant", "where2act", "--out", str(tmp_path)]
+    assert train.main(args) == 0
+    res = subprocess.run(
+        [sys.executable, "-m", "umpnet_train.export", str(tmp_path / "checkpoint.pt"), str(pkg),
+         "--direction-filter", "normal90"],
+        capture_output=True, text=True, check=False, cwd=ROOT / "train_py",
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    assert json.loads((pkg / "model.json").read_text())["direction_filter"] == "normal90"
+    pol = umpnet.Policy(str(pkg))
+    h, w = pol.resolution
+    img = np.zeros((1, h, w, 10), np.float32)
+    img[..., 9] = 2.0
+    img[..., 8] = 1.0  # every surface faces +z
+    out = pol.direction_batch(img, img, np.array([[h // 2, w // 2]]), mode="explore")[0]
+    assert out["direction"][2] >= 0.0
+    for d, dist in zip(out["candidates"], out["distance"], strict=True):
+        if d[2] < 0:
+            assert dist == -1.0

@@ -17,7 +17,7 @@ import torch
 from torch import nn
 
 from .config import Config
-from .models import CHANNELS, OBS_MEAN, OBS_STD, UMPNet
+from .models import CHANNELS, OBS_MEAN, OBS_STD, UMPNet, uses_reference
 
 FORMAT_VERSION = 1
 MAX_ABS_DIFF = 1e-3
@@ -54,15 +54,18 @@ class DecoderExport(nn.Module):
             return torch.softmax(logits, dim=1) + 0.0 * dist_embedding.sum(dim=1, keepdim=True)
         if self.variant == "signed-dist":
             return distance + 0.0 * aot_embedding.sum(dim=1)
+        if self.variant == "where2act":
+            return torch.sigmoid(distance) + 0.0 * aot_embedding.sum(dim=1)
         return distance, torch.softmax(logits, dim=1)
 
 
 def decoder_outputs(variant: str) -> list[str]:
-    return {"aot-only": ["aot_probs"], "signed-dist": ["signed_distance"]}.get(variant, ["distance", "aot_probs"])
+    special = {"aot-only": ["aot_probs"], "signed-dist": ["signed_distance"], "where2act": ["success_prob"]}
+    return special.get(variant, ["distance", "aot_probs"])
 
 
 def branches(variant: str) -> list[str]:
-    return {"aot-only": ["aot"], "signed-dist": ["signed_dist"]}.get(variant, ["dist", "aot"])
+    return {"aot-only": ["aot"], "signed-dist": ["signed_dist"], "where2act": ["binary"]}.get(variant, ["dist", "aot"])
 
 
 def _export(module, args, path, inputs, outputs, dynamic):
@@ -80,7 +83,14 @@ def _export(module, args, path, inputs, outputs, dynamic):
     )
 
 
-def export_model(model: UMPNet, cfg: Config, out: Path, provenance: dict, evaluation: dict | None = None) -> float:
+def export_model(
+    model: UMPNet,
+    cfg: Config,
+    out: Path,
+    provenance: dict,
+    evaluation: dict | None = None,
+    direction_filter: str = "none",
+) -> float:
     """Writes the package; returns the largest |ONNX - PyTorch| over all outputs."""
     import onnxruntime as ort
 
@@ -155,7 +165,8 @@ def export_model(model: UMPNet, cfg: Config, out: Path, provenance: dict, evalua
         },
         "embedding": e,
         "branches": branches(cfg.variant),
-        "uses_reference": cfg.variant != "single-step",
+        "uses_reference": uses_reference(cfg.variant),
+        "direction_filter": direction_filter,
         "aot_classes": [-1, 0, 1],
         "files": {
             "position": "position.onnx",
@@ -178,6 +189,12 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("checkpoint", type=Path)
     p.add_argument("out", type=Path)
+    p.add_argument(
+        "--direction-filter",
+        choices=["none", "normal90"],
+        default="none",
+        help="normal90: the runtime keeps only directions within 90 degrees of the surface normal (Where2Act)",
+    )
     a = p.parse_args(argv)
     if not a.checkpoint.is_file():
         print(f"error: {a.checkpoint}: no such checkpoint", file=sys.stderr)
@@ -186,7 +203,7 @@ def main(argv=None) -> int:
     cfg = Config(**ck["config"])
     model = UMPNet(cfg)
     model.load_state_dict(ck["model"])
-    worst = export_model(model, cfg, a.out, ck.get("provenance", {}), ck.get("evaluation"))
+    worst = export_model(model, cfg, a.out, ck.get("provenance", {}), ck.get("evaluation"), a.direction_filter)
     print(f"wrote {a.out} (max |ONNX - PyTorch| = {worst:.2e})")
     return 0
 

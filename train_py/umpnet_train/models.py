@@ -122,18 +122,24 @@ class DirectionDecoder(nn.Module):
         self.aot_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 3))
 
     def forward(self, dist_embedding, aot_embedding, direction):
-        """Returns (distance N, aot_logits N x 3); for signed-dist, distance is signed."""
+        """Returns (distance N, aot_logits N x 3); for signed-dist the distance is
+        signed, for where2act it is the logit of "this action moves the object"."""
         a = self.action(direction)
         distance = self.dist_head(torch.cat([dist_embedding, a], dim=1)).squeeze(1)
         aot_logits = self.aot_head(torch.cat([aot_embedding, a], dim=1))
         return distance, aot_logits
 
 
+def uses_reference(variant: str) -> bool:
+    """Single-step models (SingleStep, the Where2Act-style binary model) see no reference."""
+    return variant not in ("single-step", "where2act")
+
+
 class UMPNet(nn.Module):
     def __init__(self, cfg):
         super().__init__()
         self.position = PositionNet(tuple(cfg.position_widths))
-        self.encoder = DirectionEncoder(tuple(cfg.direction_widths), cfg.embedding, cfg.variant != "single-step")
+        self.encoder = DirectionEncoder(tuple(cfg.direction_widths), cfg.embedding, uses_reference(cfg.variant))
         self.decoder = DirectionDecoder(cfg.embedding, cfg.action_embedding, cfg.variant)
 
     def direction(self, observation, reference, pixel, direction):

@@ -67,11 +67,16 @@ class Replay:
         idx = _balanced(rng, [np.flatnonzero(labels == k) for k in (1, 0)], batch)
         return self.pos_images[idx], self.pos_pixels[idx], self.pos_labels[idx]
 
-    def sample_directions(self, rng: np.random.Generator, batch: int):
-        """Balanced 1:1:1 over AoT classes, skipping samples whose reference was overwritten."""
+    def sample_directions(self, rng: np.random.Generator, batch: int, binary: bool = False):
+        """Balanced 1:1:1 over AoT classes (binary: 1:1 moved / not moved),
+        skipping samples whose reference was overwritten."""
         n = self.dir.size
         alive = self.refs.generation[self.dir_ref[:n]] == self.dir_ref_gen[:n]
-        groups = [np.flatnonzero(alive & (self.dir_aot[:n] == k)) for k in (-1, 0, 1)]
+        aot = self.dir_aot[:n]
+        if binary:
+            groups = [np.flatnonzero(alive & (aot == 0)), np.flatnonzero(alive & (aot != 0))]
+        else:
+            groups = [np.flatnonzero(alive & (aot == k)) for k in (-1, 0, 1)]
         idx = _balanced(rng, groups, batch)
         return (
             self.dir_images[idx],

@@ -99,6 +99,8 @@ def choose_directions(model, variant, obs, wanted, eps, rng, candidates=64):
         k = {1: 2, -1: 0}[int(wanted[i])]
         if variant == "aot-only":
             score = probs[i, :, k]
+        elif variant == "where2act":
+            score = dist[i]  # logit of success; no arrow of time
         elif variant == "signed-dist":
             score = dist[i] * wanted[i]
         else:
@@ -161,12 +163,17 @@ def losses(model, cfg, replay, rng):
         tp, fp = int(((pred == 1) & (target == 1)).sum()), int(((pred == 1) & (target == 0)).sum())
         out["metric/position_precision"] = torch.tensor(tp / max(tp + fp, 1))
         total = total + out["loss/position"]
-    batch = replay.sample_directions(rng, cfg.batch_direction)
+    batch = replay.sample_directions(rng, cfg.batch_direction, binary=cfg.variant == "where2act")
     imgs, refs, pix, dirs, dist, aot = batch
     if len(aot):
         pred_dist, logits = model.direction(to_torch(imgs), to_torch(refs), to_long(pix), to_torch(dirs))
         aot_t = to_long(aot + 1)
-        if cfg.variant == "signed-dist":
+        if cfg.variant == "where2act":
+            moved = to_torch((aot != 0).astype(np.float32))
+            out["loss/success"] = F.binary_cross_entropy_with_logits(pred_dist, moved)
+            out["metric/success_accuracy"] = ((pred_dist > 0).float() == moved).float().mean()
+            total = total + out["loss/success"]
+        elif cfg.variant == "signed-dist":
             out["loss/dist"] = F.mse_loss(pred_dist, to_torch(dist * aot.astype(np.float32)))
             total = total + cfg.dist_loss_weight * out["loss/dist"]
         else:
@@ -193,7 +200,7 @@ def parse_args(argv=None):
     p.add_argument("--out", type=Path, required=True, help="run directory: checkpoints and TensorBoard logs")
     p.add_argument("--export", type=Path, help="write the final model package here")
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
-    p.add_argument("--variant", choices=["umpnet", "single-step", "aot-only", "signed-dist"])
+    p.add_argument("--variant", choices=["umpnet", "single-step", "aot-only", "signed-dist", "where2act"])
     p.add_argument("--epochs", type=int)
     p.add_argument("--seed", type=int)
     p.add_argument("--num-envs", type=int)

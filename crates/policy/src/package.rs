@@ -36,6 +36,10 @@ pub struct ModelMeta {
     pub branches: Vec<String>,
     pub uses_reference: bool,
     pub files: Files,
+    /// "none", or "normal90": only directions within 90 degrees of the surface
+    /// normal at the grasp (the Where2Act pulling heuristic).
+    #[serde(default = "default_filter")]
+    pub direction_filter: String,
     #[serde(default)]
     pub provenance: serde_json::Value,
     #[serde(default)]
@@ -44,6 +48,10 @@ pub struct ModelMeta {
 
 fn default_variant() -> String {
     "umpnet".into()
+}
+
+fn default_filter() -> String {
+    "none".into()
 }
 
 /// Which decoder outputs the package has.
@@ -55,6 +63,8 @@ pub enum Branches {
     AotOnly,
     /// One signed distance (the SignedDist baseline).
     SignedDist,
+    /// The probability that the action moves the object (the Where2Act-style baseline).
+    Binary,
 }
 
 /// Scores of candidate directions: distance >= 0 and AoT class probabilities (-1, 0, +1).
@@ -184,15 +194,26 @@ impl ModelPackage {
             (Branches::AotOnly, vec!["aot_probs".to_string()])
         } else if has("signed_dist") {
             (Branches::SignedDist, vec!["signed_distance".to_string()])
+        } else if has("binary") {
+            (Branches::Binary, vec!["success_prob".to_string()])
         } else {
             return Err(pkg_err(
                 &meta_path,
                 format!(
-                    "`branches` {:?}: expected [dist, aot], [aot] or [signed_dist]",
+                    "`branches` {:?}: expected [dist, aot], [aot], [signed_dist] or [binary]",
                     meta.branches
                 ),
             ));
         };
+        if !["none", "normal90"].contains(&meta.direction_filter.as_str()) {
+            return Err(pkg_err(
+                &meta_path,
+                format!(
+                    "`direction_filter` is `{}`, expected none or normal90",
+                    meta.direction_filter
+                ),
+            ));
+        }
         let env = crate::runtime::environment(ort_library)?;
         let (h, w, e) = (
             meta.input.height as i64,
@@ -417,6 +438,16 @@ impl ModelPackage {
                         p[[i, k]] = 1.0;
                     }
                     DirectionScores { distance: sd.mapv(f32::abs), aot_probs: p }
+                }
+                Branches::Binary => {
+                    // No arrow of time: a likely success counts as "forward", so the
+                    // model explores and never claims to move toward a goal.
+                    let ps = get1("success_prob")?;
+                    let mut p = Array2::<f32>::zeros((ps.len(), 3));
+                    for (i, v) in ps.iter().enumerate() {
+                        p[[i, if *v >= 0.5 { 2 } else { 1 }]] = 1.0;
+                    }
+                    DirectionScores { distance: ps, aot_probs: p }
                 }
             })
         })

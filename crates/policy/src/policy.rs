@@ -137,14 +137,16 @@ impl UmpnetPolicy {
             .zip(rngs.iter_mut())
             .map(|(inp, rng)| first_round(rng, inp.banned))
             .collect();
-        let s1 = self.score(&de, &ae, &first)?;
+        let mut s1 = self.score(&de, &ae, &first)?;
+        self.filter(inputs, &first, &mut s1);
         let second: Vec<Vec<Vector3<f32>>> = inputs
             .iter()
             .zip(rngs.iter_mut())
             .enumerate()
             .map(|(i, (inp, rng))| second_round(rng, &first[i], &s1[i], inp.mode, inp.banned))
             .collect();
-        let s2 = self.score(&de, &ae, &second)?;
+        let mut s2 = self.score(&de, &ae, &second)?;
+        self.filter(inputs, &second, &mut s2);
         Ok((0..b)
             .map(|i| {
                 let candidates: Vec<Vector3<f32>> =
@@ -157,6 +159,37 @@ impl UmpnetPolicy {
                 }
             })
             .collect())
+    }
+
+    /// The Where2Act pulling heuristic, when the package asks for it: a
+    /// direction more than 90 degrees from the surface normal at the grasp
+    /// scores as "no effect".
+    fn filter(
+        &self,
+        inputs: &[DecisionInput],
+        cands: &[Vec<Vector3<f32>>],
+        scores: &mut [Vec<Score>],
+    ) {
+        if self.package.meta.direction_filter != "normal90" {
+            return;
+        }
+        let (h, w) = self.resolution();
+        for (i, inp) in inputs.iter().enumerate() {
+            let (r, c) = (inp.pixel.0.min(h - 1), inp.pixel.1.min(w - 1));
+            let n = Vector3::new(
+                inp.observation[[r, c, 6]],
+                inp.observation[[r, c, 7]],
+                inp.observation[[r, c, 8]],
+            );
+            for (d, s) in cands[i].iter().zip(scores[i].iter_mut()) {
+                if d.dot(&n) < 0.0 {
+                    *s = Score {
+                        distance: -1.0,
+                        aot: 0,
+                    };
+                }
+            }
+        }
     }
 
     /// Scores each environment's candidates in one decoder call.
