@@ -200,7 +200,8 @@ fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> 
         [255, 40, 40],
     );
     if let Some(s) = step {
-        let from = f.point_in_world(pixel.0, pixel.1);
+        // Arrows start where the gripper was when the action began.
+        let from = Some(Vec3::from(s.gripper_in_world));
         if let (Some(c), Some(_)) = (&s.candidates, from) {
             let maxd = c.distance.iter().copied().fold(1e-6f32, f32::max);
             for (k, d) in c.directions.iter().enumerate() {
