@@ -45,7 +45,10 @@ test-rust: fixture
 	UMPNET_REQUIRE_WGPU=1 cargo test --release
 
 test-python: build py fixture
-	UMPNET_BIN=$(UMPNET) PYTHONPATH=train_py $(PY) -m pytest -q tests crates/py/tests train_py/tests
+	# One process per suite: native libraries loaded by one suite cannot affect another.
+	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests
+	$(PY) -m pytest -q crates/py/tests
+	UMPNET_BIN=$(UMPNET) PYTHONPATH=train_py $(PY) -m pytest -q train_py/tests
 
 test: lint test-rust test-python
 

@@ -1,13 +1,14 @@
 use crate::Ctx;
 use anyhow::Result;
 use std::time::Instant;
+use umpnet_eval::learned::camera_frame;
 use umpnet_eval::scripted::OraclePolicy;
 use umpnet_eval::{Decision, Observation, Policy};
-use umpnet_policy::{CameraFrame, build_observation};
+use umpnet_policy::build_observation;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::{Pick, SimEnv};
 use umpnet_sim::objects::Category;
-use umpnet_sim::render::{Frame, RendererKind, create_renderer};
+use umpnet_sim::render::{RendererKind, create_renderer};
 use umpnet_sim::scene::Task;
 
 #[derive(clap::Args)]
@@ -23,23 +24,6 @@ pub struct BenchArgs {
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-}
-
-pub fn camera_frame(f: &Frame) -> CameraFrame<'_> {
-    let m = f.world_from_camera.to_mat4().transpose().to_cols_array_2d();
-    CameraFrame {
-        width: f.width as usize,
-        height: f.height as usize,
-        rgb: &f.rgb,
-        depth: &f.depth,
-        intrinsics: [
-            f.intrinsics.fx,
-            f.intrinsics.fy,
-            f.intrinsics.cx,
-            f.intrinsics.cy,
-        ],
-        world_from_camera: m,
-    }
 }
 
 /// Physics: median time of one 0.18 m action with the oracle's directions (re-grasping after each episode).

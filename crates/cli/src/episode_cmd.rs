@@ -201,8 +201,8 @@ fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> 
     );
     if let Some(s) = step {
         // Arrows start where the gripper was when the action began.
-        let from = Some(Vec3::from(s.gripper_in_world));
-        if let (Some(c), Some(_)) = (&s.candidates, from) {
+        let from = Vec3::from(s.gripper_in_world);
+        if let Some(c) = &s.candidates {
             let maxd = c.distance.iter().copied().fold(1e-6f32, f32::max);
             for (k, d) in c.directions.iter().enumerate() {
                 let color = match c.aot.get(k) {
@@ -210,28 +210,19 @@ fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> 
                     Some(-1) => [230, 60, 200],
                     _ => [160, 160, 160],
                 };
-                images::draw_arrow(
-                    &mut img,
-                    f,
-                    from.unwrap_or(Vec3::ZERO),
-                    Vec3::from(*d),
-                    0.2 * c.distance[k] / maxd,
-                    color,
-                    1,
-                );
+                let length = 0.2 * c.distance[k].max(0.0) / maxd;
+                images::draw_arrow(&mut img, f, from, Vec3::from(*d), length, color, 1);
             }
         }
-        if let Some(p) = from {
-            images::draw_arrow(
-                &mut img,
-                f,
-                p,
-                Vec3::from(s.record.direction),
-                0.25,
-                [255, 220, 0],
-                thick + 1,
-            );
-        }
+        images::draw_arrow(
+            &mut img,
+            f,
+            from,
+            Vec3::from(s.record.direction),
+            0.25,
+            [255, 220, 0],
+            thick + 1,
+        );
     }
     let _ = t;
     images::enlarge(&img, 320)

@@ -172,6 +172,15 @@ fn position_info<'py>(py: Python<'py>, i: &PositionInfo) -> PyResult<Bound<'py, 
     Ok(d)
 }
 
+/// (row, col), [x, y, z] or None.
+fn scripted_to_py(py: Python<'_>, a: ScriptedAction) -> PyResult<Py<PyAny>> {
+    Ok(match a {
+        ScriptedAction::Pixel(r, c) => (r, c).into_pyobject(py)?.into_any().unbind(),
+        ScriptedAction::Direction(d) => d.to_vec().into_pyobject(py)?.into_any().unbind(),
+        ScriptedAction::Stop => py.None(),
+    })
+}
+
 fn parse_direction(v: Vec<f32>) -> PyResult<[f32; 3]> {
     let d: [f32; 3] = v.try_into().map_err(|v: Vec<f32>| {
         PyValueError::new_err(format!("direction must have 3 components, got {}", v.len()))
@@ -284,13 +293,7 @@ impl Env {
     /// The action `oracle` or `random` would take now: (row, col) before the
     /// grasp, a direction after, None when the policy stops.
     fn scripted_action(&mut self, py: Python<'_>, policy: &str) -> PyResult<Py<PyAny>> {
-        Ok(
-            match self.inner.scripted_action(policy).map_err(eval_err)? {
-                ScriptedAction::Pixel(r, c) => (r, c).into_pyobject(py)?.into_any().unbind(),
-                ScriptedAction::Direction(d) => d.to_vec().into_pyobject(py)?.into_any().unbind(),
-                ScriptedAction::Stop => py.None(),
-            },
-        )
+        scripted_to_py(py, self.inner.scripted_action(policy).map_err(eval_err)?)
     }
 
     /// Current joint values of the object.
@@ -550,11 +553,10 @@ impl VecEnv {
     fn scripted_actions(&mut self, py: Python<'_>, policy: &str) -> PyResult<Vec<Py<PyAny>>> {
         let mut out = Vec::with_capacity(self.envs.len());
         for e in &mut self.envs {
-            out.push(match e.scripted_action(policy).map_err(eval_err)? {
-                ScriptedAction::Pixel(r, c) => (r, c).into_pyobject(py)?.into_any().unbind(),
-                ScriptedAction::Direction(d) => d.to_vec().into_pyobject(py)?.into_any().unbind(),
-                ScriptedAction::Stop => py.None(),
-            });
+            out.push(scripted_to_py(
+                py,
+                e.scripted_action(policy).map_err(eval_err)?,
+            )?);
         }
         Ok(out)
     }

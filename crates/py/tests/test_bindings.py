@@ -138,3 +138,22 @@ def test_policy_runs_on_env_observations():
     out = pol.direction_batch(obs["image"][None], obs["reference"][None], np.array([[row, col]]), mode="explore")
     assert len(out) == 1 and len(out[0]["candidates"]) == len(out[0]["distance"]) >= 64
     assert out[0]["direction"] is not None and abs(np.linalg.norm(out[0]["direction"]) - 1) < 1e-4
+
+
+def test_torch_optimizer_after_rendering_in_the_same_process():
+    """umpnet_train loads torch's lazy native parts before any environment renders
+    (Mesa's LLVM then torch's segfaulted); check it in a fresh process."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = (
+        "import umpnet_train, torch, umpnet\n"
+        "e = umpnet.Env(seed=1, resolution=(48, 64)); e.reset()\n"
+        "torch.optim.Adam([torch.zeros(1, requires_grad=True)])\n"
+        "print('ok')\n"
+    )
+    root = Path(__file__).resolve().parents[3]
+    env = {**os.environ, "PYTHONPATH": str(root / "train_py")}
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=False)
+    assert res.returncode == 0 and "ok" in res.stdout, res.stderr[-2000:]

@@ -24,12 +24,7 @@ impl Renderer for CpuRenderer {
     }
 
     fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame> {
-        let (w, h) = (camera.width, camera.height);
-        if w == 0 || h == 0 || w > 4096 || h > 4096 {
-            return Err(SimError::Render(format!(
-                "resolution {h}x{w} out of range 1..=4096"
-            )));
-        }
+        let (w, h) = super::check_resolution(camera)?;
         // Triangles in world frame, each remembering its mesh.
         let mut positions = Vec::new();
         let mut triangles = Vec::new();

@@ -304,12 +304,7 @@ impl Renderer for GpuRenderer {
     }
 
     fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame> {
-        let (w, h) = (camera.width, camera.height);
-        if w == 0 || h == 0 || w > 4096 || h > 4096 {
-            return Err(SimError::Render(format!(
-                "resolution {h}x{w} out of range 1..=4096"
-            )));
-        }
+        let (w, h) = super::check_resolution(camera)?;
         let k = camera.intrinsics();
         let world_from_camera = camera.world_from_camera();
         let (n, f) = (camera.near, camera.far);

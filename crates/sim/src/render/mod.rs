@@ -145,6 +145,17 @@ pub fn create_renderer(kind: RendererKind) -> Result<Box<dyn Renderer>> {
     }
 }
 
+/// Both renderers accept images of 1..=4096 pixels a side.
+pub(crate) fn check_resolution(camera: &Camera) -> Result<(u32, u32)> {
+    let (w, h) = (camera.width, camera.height);
+    if w == 0 || h == 0 || w > 4096 || h > 4096 {
+        return Err(SimError::Render(format!(
+            "resolution {h}x{w} out of range 1..=4096"
+        )));
+    }
+    Ok((w, h))
+}
+
 /// Flat shading with one light, shared by both renderers.
 pub(crate) fn shade(color: [f32; 3], normal: Vec3) -> [u8; 3] {
     let light = Vec3::new(0.3, -0.6, 0.75).normalize();
