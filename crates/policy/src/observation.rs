@@ -4,6 +4,7 @@
 use crate::error::{PolicyError, Result};
 use nalgebra::{Matrix4, Point3, Vector3};
 use ndarray::Array3;
+use rayon::prelude::*;
 
 pub const CHANNELS: usize = 10;
 
@@ -104,83 +105,90 @@ pub fn build_observation(frame: &CameraFrame) -> Result<Array3<f32>> {
     let [fx, fy, cx, cy] = frame.intrinsics;
     let (ifx, ify) = (1.0 / fx, 1.0 / fy);
     let eye = [m[0][3], m[1][3], m[2][3]];
-    // Pass 1: world points, colour and depth.
+    // Pass 1: world points, colour and depth; rows in parallel.
     let mut out = vec![0f32; h * w * CHANNELS];
     let mut points = vec![[0f32; 3]; h * w];
     let mut valid = vec![false; h * w];
-    for r in 0..h {
-        let yc = (r as f32 + 0.5 - cy) * ify;
-        for c in 0..w {
-            let i = r * w + c;
-            let o = &mut out[i * CHANNELS..(i + 1) * CHANNELS];
-            for k in 0..3 {
-                o[3 + k] = frame.rgb[i * 3 + k] as f32 * (1.0 / 255.0);
-            }
-            let d = frame.depth[i];
-            if !(d.is_finite() && d > 0.0) {
-                continue;
-            }
-            let p_cam = [(c as f32 + 0.5 - cx) * ifx * d, yc * d, d];
-            let mut p = [0f32; 3];
-            for (k, pk) in p.iter_mut().enumerate() {
-                *pk = m[k][0] * p_cam[0] + m[k][1] * p_cam[1] + m[k][2] * p_cam[2] + m[k][3];
-            }
-            o[..3].copy_from_slice(&p);
-            o[9] = d;
-            points[i] = p;
-            valid[i] = true;
-        }
-    }
-    // Pass 2: normals from neighbouring points.
-    let sub = |a: [f32; 3], b: [f32; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    for r in 0..h {
-        for c in 0..w {
-            let i = r * w + c;
-            if !valid[i] {
-                continue;
-            }
-            let (p, d0) = (points[i], frame.depth[i]);
-            // Difference toward the neighbour closer in depth, signed as "after minus before".
-            let diff = |before: Option<usize>, after: Option<usize>| -> Option<[f32; 3]> {
-                let b = before.filter(|&j| valid[j]);
-                let a = after.filter(|&j| valid[j]);
-                match (b, a) {
-                    (Some(j), Some(k))
-                        if (frame.depth[j] - d0).abs() <= (frame.depth[k] - d0).abs() =>
-                    {
-                        Some(sub(p, points[j]))
-                    }
-                    (_, Some(k)) => Some(sub(points[k], p)),
-                    (Some(j), None) => Some(sub(p, points[j])),
-                    (None, None) => None,
+    out.par_chunks_mut(w * CHANNELS)
+        .zip(points.par_chunks_mut(w))
+        .zip(valid.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(r, ((out_row, points_row), valid_row))| {
+            let yc = (r as f32 + 0.5 - cy) * ify;
+            for c in 0..w {
+                let i = r * w + c;
+                let o = &mut out_row[c * CHANNELS..(c + 1) * CHANNELS];
+                for k in 0..3 {
+                    o[3 + k] = frame.rgb[i * 3 + k] as f32 * (1.0 / 255.0);
                 }
-            };
-            let dx = diff((c > 0).then(|| i - 1), (c + 1 < w).then(|| i + 1));
-            let dy = diff((r > 0).then(|| i - w), (r + 1 < h).then(|| i + w));
-            let (Some(a), Some(b)) = (dx, dy) else {
-                continue;
-            };
-            let mut n = [
-                a[1] * b[2] - a[2] * b[1],
-                a[2] * b[0] - a[0] * b[2],
-                a[0] * b[1] - a[1] * b[0],
-            ];
-            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            if len <= 0.0 {
-                continue;
+                let d = frame.depth[i];
+                if !(d.is_finite() && d > 0.0) {
+                    continue;
+                }
+                let p_cam = [(c as f32 + 0.5 - cx) * ifx * d, yc * d, d];
+                let mut p = [0f32; 3];
+                for (k, pk) in p.iter_mut().enumerate() {
+                    *pk = m[k][0] * p_cam[0] + m[k][1] * p_cam[1] + m[k][2] * p_cam[2] + m[k][3];
+                }
+                o[..3].copy_from_slice(&p);
+                o[9] = d;
+                points_row[c] = p;
+                valid_row[c] = true;
             }
-            let to_eye = sub(eye, p);
-            let sign = if n[0] * to_eye[0] + n[1] * to_eye[1] + n[2] * to_eye[2] < 0.0 {
-                -1.0
-            } else {
-                1.0
-            };
-            for v in &mut n {
-                *v *= sign / len;
+        });
+    // Pass 2: normals from neighbouring points; rows in parallel.
+    let sub = |a: [f32; 3], b: [f32; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let (points, valid) = (&points, &valid);
+    out.par_chunks_mut(w * CHANNELS)
+        .enumerate()
+        .for_each(|(r, out_row)| {
+            for c in 0..w {
+                let i = r * w + c;
+                if !valid[i] {
+                    continue;
+                }
+                let (p, d0) = (points[i], frame.depth[i]);
+                // Difference toward the neighbour closer in depth, signed as "after minus before".
+                let diff = |before: Option<usize>, after: Option<usize>| -> Option<[f32; 3]> {
+                    let b = before.filter(|&j| valid[j]);
+                    let a = after.filter(|&j| valid[j]);
+                    match (b, a) {
+                        (Some(j), Some(k))
+                            if (frame.depth[j] - d0).abs() <= (frame.depth[k] - d0).abs() =>
+                        {
+                            Some(sub(p, points[j]))
+                        }
+                        (_, Some(k)) => Some(sub(points[k], p)),
+                        (Some(j), None) => Some(sub(p, points[j])),
+                        (None, None) => None,
+                    }
+                };
+                let dx = diff((c > 0).then(|| i - 1), (c + 1 < w).then(|| i + 1));
+                let dy = diff((r > 0).then(|| i - w), (r + 1 < h).then(|| i + w));
+                let (Some(a), Some(b)) = (dx, dy) else {
+                    continue;
+                };
+                let mut n = [
+                    a[1] * b[2] - a[2] * b[1],
+                    a[2] * b[0] - a[0] * b[2],
+                    a[0] * b[1] - a[1] * b[0],
+                ];
+                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                if len <= 0.0 {
+                    continue;
+                }
+                let to_eye = sub(eye, p);
+                let sign = if n[0] * to_eye[0] + n[1] * to_eye[1] + n[2] * to_eye[2] < 0.0 {
+                    -1.0
+                } else {
+                    1.0
+                };
+                for v in &mut n {
+                    *v *= sign / len;
+                }
+                out_row[c * CHANNELS + 6..c * CHANNELS + 9].copy_from_slice(&n);
             }
-            out[i * CHANNELS + 6..i * CHANNELS + 9].copy_from_slice(&n);
-        }
-    }
+        });
     Array3::from_shape_vec((h, w, CHANNELS), out)
         .map_err(|e| PolicyError::Input(format!("observation shape: {e}")))
 }
