@@ -74,13 +74,21 @@ pub fn sample_visible_scene(
 ) -> Result<Scene> {
     let model = object.load()?;
     let mut last = None;
+    // One environment for every try: `reset` keeps the loaded object and its meshes.
+    let mut env: Option<SimEnv> = None;
     for _ in 0..20 {
         let scene = sample_scene(rng, task, category, object.clone(), &model, None)?;
-        let mut env = SimEnv::new(
-            scene.clone(),
-            Camera::reference(96, 128),
-            Box::new(CpuRenderer::default()),
-        )?;
+        let env = match env.as_mut() {
+            Some(e) => {
+                e.reset(scene.clone())?;
+                e
+            }
+            None => env.insert(SimEnv::new(
+                scene.clone(),
+                Camera::reference(96, 128),
+                Box::new(CpuRenderer::default()),
+            )?),
+        };
         let frame = env.render()?;
         let mut pixels = vec![0usize; model.joints.len()];
         for &s in &frame.segmentation {

@@ -6,8 +6,3 @@ pub use rapier3d::glamx::{Mat3, Mat4, Pose3, Quat, Vec3};
 pub fn rotation_x_to(axis: Vec3) -> Quat {
     Quat::from_rotation_arc(Vec3::X, axis.normalize())
 }
-
-/// Any unit vector perpendicular to `v`.
-pub fn any_perpendicular(v: Vec3) -> Vec3 {
-    v.any_orthonormal_vector()
-}
