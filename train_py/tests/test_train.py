@@ -45,6 +45,12 @@ def test_replay_balances_classes_and_drops_stale_references():
     rng = np.random.default_rng(0)
     *_, aot = r.sample_directions(rng, 24)
     assert sorted(set(aot.tolist())) == [-1, 0, 1] and (aot == 1).sum() == 8
+    *_, aot = r.sample_directions(rng, 24, "moved")
+    assert len(aot) == 24 and (aot != 0).all()
+    *_, aot = r.sample_directions(rng, 24, "binary")
+    assert (aot == 0).sum() == 12
+    with pytest.raises(ValueError, match="expected aot, binary or moved"):
+        r.sample_directions(rng, 24, "all")
     for _ in range(8):  # overwrite the reference: every sample now points at a stale one
         r.add_reference(img)
     assert len(r.sample_directions(rng, 24)[-1]) == 0
@@ -126,3 +132,34 @@ def test_where2act_filter_keeps_directions_within_90_degrees_of_the_normal(tmp_p
     for d, dist in zip(out["candidates"], out["distance"], strict=True):
         if d[2] < 0:
             assert dist == -1.0
+
+
+def test_inverse_baseline_regresses_one_direction_and_refuses_exploration(tmp_path):
+    pkg = tmp_path / "package"
+    args = ["--preset", "smoke", "--epochs", "2", "--variant", "inverse", "--out", str(tmp_path), "--export", str(pkg)]
+    assert train.main(args) == 0
+    meta = json.loads((pkg / "model.json").read_text())
+    assert meta["branches"] == ["inverse"] and meta["decoder_outputs"] == ["predicted_direction"]
+    pol = umpnet.Policy(str(pkg))
+    h, w = pol.resolution
+    rng = np.random.default_rng(1)
+    cur = rng.normal(size=(2, h, w, 10)).astype(np.float32)
+    goal = rng.normal(size=(2, h, w, 10)).astype(np.float32)
+    out = pol.direction_batch(cur, goal, np.array([[1, 2], [3, 4]]), mode="goal")
+    for o in out:
+        d = np.array(o["direction"])
+        assert abs(np.linalg.norm(d) - 1.0) < 1e-4 and len(o["candidates"]) == 1
+    with pytest.raises(ValueError, match="only the goal task"):
+        pol.direction_batch(cur, goal, np.array([[1, 2], [3, 4]]), mode="explore")
+    umpnet_bin = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
+    res = subprocess.run(
+        [umpnet_bin, "explore", "--category", "Door", "--policy", f"inv={pkg}", "--steps", "2"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert res.returncode == 2 and "serves only the goal task" in res.stderr
+    res = subprocess.run(
+        [umpnet_bin, "--json", "goal", "--category", "Door", "--policy", f"inv={pkg}", "--steps", "2"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    assert len(json.loads(res.stdout)["steps"]) == 2

@@ -15,7 +15,7 @@ class Config:
     direction_widths: tuple[int, ...] = (32, 64, 128, 256)
     embedding: int = 64
     action_embedding: int = 32
-    variant: str = "umpnet"  # umpnet | single-step | aot-only | signed-dist | where2act
+    variant: str = "umpnet"  # umpnet | single-step | aot-only | signed-dist | where2act | inverse
     # Data collection (paper: 64 environments, 6400-sample FIFO replay buffer)
     num_envs: int = 64
     replay_size: int = 6400

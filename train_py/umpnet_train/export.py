@@ -41,6 +41,17 @@ class EncoderExport(nn.Module):
         return self.enc(observation, reference, pixel)
 
 
+class InverseDecoderExport(nn.Module):
+    """The Inverse baseline's decoder: no candidate direction in, one unit direction out."""
+
+    def __init__(self, dec):
+        super().__init__()
+        self.dec = dec
+
+    def forward(self, dist_embedding, aot_embedding):
+        return torch.nn.functional.normalize(self.dec.inverse(dist_embedding, aot_embedding), dim=1)
+
+
 class DecoderExport(nn.Module):
     def __init__(self, dec, variant):
         super().__init__()
@@ -60,12 +71,18 @@ class DecoderExport(nn.Module):
 
 
 def decoder_outputs(variant: str) -> list[str]:
-    special = {"aot-only": ["aot_probs"], "signed-dist": ["signed_distance"], "where2act": ["success_prob"]}
+    special = {
+        "aot-only": ["aot_probs"],
+        "signed-dist": ["signed_distance"],
+        "where2act": ["success_prob"],
+        "inverse": ["predicted_direction"],
+    }
     return special.get(variant, ["distance", "aot_probs"])
 
 
 def branches(variant: str) -> list[str]:
-    return {"aot-only": ["aot"], "signed-dist": ["signed_dist"], "where2act": ["binary"]}.get(variant, ["dist", "aot"])
+    special = {"aot-only": ["aot"], "signed-dist": ["signed_dist"], "where2act": ["binary"], "inverse": ["inverse"]}
+    return special.get(variant, ["dist", "aot"])
 
 
 def _export(module, args, path, inputs, outputs, dynamic):
@@ -122,13 +139,16 @@ def export_model(
             ["dist_embedding", "aot_embedding"],
             {k: {0: "batch"} for k in ["observation", "reference", "pixel", "dist_embedding", "aot_embedding"]},
         )
+        inverse = cfg.variant == "inverse"
+        decoder = InverseDecoderExport(model.decoder) if inverse else DecoderExport(model.decoder, cfg.variant)
+        dec_in = {"dist_embedding": de, "aot_embedding": ae} | ({} if inverse else {"direction": direction})
         _export(
-            DecoderExport(model.decoder, cfg.variant),
-            (de, ae, direction),
+            decoder,
+            tuple(dec_in.values()),
             out / "direction_decoder.onnx",
-            ["dist_embedding", "aot_embedding", "direction"],
+            list(dec_in),
             dec_out,
-            {k: {0: "candidates"} for k in ["dist_embedding", "aot_embedding", "direction", *dec_out]},
+            {k: {0: "candidates"} for k in [*dec_in, *dec_out]},
         )
         model.eval()
         expected = {
@@ -138,11 +158,8 @@ def export_model(
                 {"observation": obs, "reference": ref, "pixel": pixel},
             ),
         }
-        dec = DecoderExport(model.decoder, cfg.variant)(de, ae, direction)
-        expected["direction_decoder.onnx"] = (
-            list(dec) if isinstance(dec, tuple) else [dec],
-            {"dist_embedding": de, "aot_embedding": ae, "direction": direction},
-        )
+        dec = decoder(*dec_in.values())
+        expected["direction_decoder.onnx"] = (list(dec) if isinstance(dec, tuple) else [dec], dec_in)
     worst = 0.0
     for name, (torch_out, feeds) in expected.items():
         sess = ort.InferenceSession(str(out / name), providers=["CPUExecutionProvider"])

@@ -120,6 +120,8 @@ class DirectionDecoder(nn.Module):
         hidden = 64
         self.dist_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 1))
         self.aot_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 3))
+        if variant == "inverse":
+            self.inverse_head = nn.Sequential(nn.Linear(2 * embedding, hidden), nn.ReLU(), nn.Linear(hidden, 3))
 
     def forward(self, dist_embedding, aot_embedding, direction):
         """Returns (distance N, aot_logits N x 3); for signed-dist the distance is
@@ -128,6 +130,11 @@ class DirectionDecoder(nn.Module):
         distance = self.dist_head(torch.cat([dist_embedding, a], dim=1)).squeeze(1)
         aot_logits = self.aot_head(torch.cat([aot_embedding, a], dim=1))
         return distance, aot_logits
+
+    def inverse(self, dist_embedding, aot_embedding):
+        """The Inverse baseline: the action direction, regressed from the current
+        observation and the one to reach (not normalised)."""
+        return self.inverse_head(torch.cat([dist_embedding, aot_embedding], dim=1))
 
 
 def uses_reference(variant: str) -> bool:
@@ -145,3 +152,7 @@ class UMPNet(nn.Module):
     def direction(self, observation, reference, pixel, direction):
         de, ae = self.encoder(observation, reference, pixel)
         return self.decoder(de, ae, direction)
+
+    def inverse(self, observation, target, pixel):
+        de, ae = self.encoder(observation, target, pixel)
+        return self.decoder.inverse(de, ae)

@@ -67,16 +67,21 @@ class Replay:
         idx = _balanced(rng, [np.flatnonzero(labels == k) for k in (1, 0)], batch)
         return self.pos_images[idx], self.pos_pixels[idx], self.pos_labels[idx]
 
-    def sample_directions(self, rng: np.random.Generator, batch: int, binary: bool = False):
-        """Balanced 1:1:1 over AoT classes (binary: 1:1 moved / not moved),
-        skipping samples whose reference was overwritten."""
+    def sample_directions(self, rng: np.random.Generator, batch: int, groups: str = "aot"):
+        """Balanced over `groups`: "aot" 1:1:1 over AoT classes, "binary" 1:1
+        moved / not moved, "moved" only samples that moved the object; skips
+        samples whose reference was overwritten."""
         n = self.dir.size
         alive = self.refs.generation[self.dir_ref[:n]] == self.dir_ref_gen[:n]
         aot = self.dir_aot[:n]
-        if binary:
+        if groups == "binary":
             groups = [np.flatnonzero(alive & (aot == 0)), np.flatnonzero(alive & (aot != 0))]
-        else:
+        elif groups == "moved":
+            groups = [np.flatnonzero(alive & (aot != 0))]
+        elif groups == "aot":
             groups = [np.flatnonzero(alive & (aot == k)) for k in (-1, 0, 1)]
+        else:
+            raise ValueError(f"groups is {groups!r}, expected aot, binary or moved")
         idx = _balanced(rng, groups, batch)
         return (
             self.dir_images[idx],

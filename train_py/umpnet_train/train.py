@@ -82,8 +82,12 @@ def choose_positions(model, obs, eps, rng):
 @torch.no_grad()
 def choose_directions(model, variant, obs, wanted, eps, rng, candidates=64):
     """Greedy: among random candidates, the largest predicted distance with the
-    wanted AoT (+1 forward, -1 back); else a uniformly random direction."""
+    wanted AoT (+1 forward, -1 back); else a uniformly random direction.
+    The Inverse baseline has no score to explore with: its data comes from
+    uniformly random directions."""
     n = obs["image"].shape[0]
+    if variant == "inverse":
+        return unit(rng.normal(size=(n, 3))).astype(np.float32)
     pix = to_long(obs["gripper_pixel"].clip(min=0))
     de, ae = model.encoder(to_torch(obs["image"]), to_torch(obs["reference"]), pix)
     cand = unit(rng.normal(size=(n, candidates, 3))).astype(np.float32)
@@ -138,8 +142,10 @@ def collect(env, model, cfg, replay, epoch, rng, stats):
         obs, labels, sinfo = env.step_direction(dirs)
         stats["sim_s"] += time.perf_counter() - t0
         for i in np.flatnonzero(sinfo["active"]):
+            # The Inverse model learns (s_t, s_t+1) -> a_t: its "reference" is the next observation.
+            ref = replay.add_reference(obs["image"][i]) if cfg.variant == "inverse" else refs[i]
             replay.add_direction(
-                before["image"][i], before["gripper_pixel"][i], dirs[i], labels["r_dist"][i], labels["aot"][i], refs[i]
+                before["image"][i], before["gripper_pixel"][i], dirs[i], labels["r_dist"][i], labels["aot"][i], ref
             )
             moved_any[i] |= bool(labels["moved"][i])
             stats["aot_counts"][int(labels["aot"][i]) + 1] += 1
@@ -163,9 +169,14 @@ def losses(model, cfg, replay, rng):
         tp, fp = int(((pred == 1) & (target == 1)).sum()), int(((pred == 1) & (target == 0)).sum())
         out["metric/position_precision"] = torch.tensor(tp / max(tp + fp, 1))
         total = total + out["loss/position"]
-    batch = replay.sample_directions(rng, cfg.batch_direction, binary=cfg.variant == "where2act")
-    imgs, refs, pix, dirs, dist, aot = batch
-    if len(aot):
+    groups = {"where2act": "binary", "inverse": "moved"}.get(cfg.variant, "aot")
+    imgs, refs, pix, dirs, dist, aot = replay.sample_directions(rng, cfg.batch_direction, groups)
+    if len(aot) and cfg.variant == "inverse":
+        pred = model.inverse(to_torch(imgs), to_torch(refs), to_long(pix))
+        out["loss/inverse"] = F.mse_loss(pred, to_torch(dirs))
+        out["metric/inverse_cosine"] = F.cosine_similarity(pred, to_torch(dirs), dim=1).mean()
+        total = total + out["loss/inverse"]
+    elif len(aot):
         pred_dist, logits = model.direction(to_torch(imgs), to_torch(refs), to_long(pix), to_torch(dirs))
         aot_t = to_long(aot + 1)
         if cfg.variant == "where2act":
@@ -200,7 +211,7 @@ def parse_args(argv=None):
     p.add_argument("--out", type=Path, required=True, help="run directory: checkpoints and TensorBoard logs")
     p.add_argument("--export", type=Path, help="write the final model package here")
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
-    p.add_argument("--variant", choices=["umpnet", "single-step", "aot-only", "signed-dist", "where2act"])
+    p.add_argument("--variant", choices=["umpnet", "single-step", "aot-only", "signed-dist", "where2act", "inverse"])
     p.add_argument("--epochs", type=int)
     p.add_argument("--seed", type=int)
     p.add_argument("--num-envs", type=int)

@@ -34,7 +34,7 @@ pub struct EpisodeArgs {
 
 pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
     let resolved =
-        crate::policies::resolve(std::slice::from_ref(&a.policy), a.model.as_deref(), 1)?;
+        crate::policies::resolve(std::slice::from_ref(&a.policy), a.model.as_deref(), 1, task)?;
     let mut policy: Box<dyn Policy> = match resolved.factories.first() {
         Some((_, make)) => make()?,
         None => return Err(usage("--policy is empty")),

@@ -94,7 +94,7 @@ pub fn run(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         return Err(usage("--episodes-per-category must be at least 1"));
     }
     let threads = a.threads.unwrap_or_else(rayon::current_num_threads).max(1);
-    let resolved = crate::policies::resolve(&a.policies, a.model.as_deref(), threads)?;
+    let resolved = crate::policies::resolve(&a.policies, a.model.as_deref(), threads, a.task)?;
     let policies: Vec<(String, PolicyFactory)> = resolved.factories;
     let names: Vec<String> = policies.iter().map(|(n, _)| n.clone()).collect();
     let resolution = resolved.resolution.unwrap_or(a.resolution);

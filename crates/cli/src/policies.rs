@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use umpnet_eval::bench::PolicyFactory;
 use umpnet_eval::learned::LearnedPolicy;
+use umpnet_policy::Branches;
+use umpnet_sim::scene::Task;
 
 /// The shipped model, looked for beside the working directory and the executable.
 pub fn default_model() -> PathBuf {
@@ -27,7 +29,13 @@ pub struct Resolved {
     pub resolution: Option<(u32, u32)>,
 }
 
-pub fn resolve(specs: &[String], model: Option<&Path>, sessions: usize) -> Result<Resolved> {
+/// Packages are checked against `task`: an Inverse package has no exploration behaviour.
+pub fn resolve(
+    specs: &[String],
+    model: Option<&Path>,
+    sessions: usize,
+    task: Task,
+) -> Result<Resolved> {
     let mut factories: Vec<(String, PolicyFactory)> = Vec::new();
     let mut resolution: Option<(u32, u32)> = None;
     for spec in specs {
@@ -63,6 +71,12 @@ pub fn resolve(specs: &[String], model: Option<&Path>, sessions: usize) -> Resul
                 }
                 let pkg = LearnedPolicy::load(&dir, sessions)
                     .with_context(|| format!("loading policy `{name}`"))?;
+                if pkg.branches == Branches::Inverse && task != Task::Goal {
+                    return Err(usage(format!(
+                        "policy `{name}`: {} is an Inverse package, which serves only the goal task",
+                        dir.display()
+                    )));
+                }
                 let r = (pkg.meta.input.height as u32, pkg.meta.input.width as u32);
                 if let Some(prev) = resolution.filter(|p| *p != r) {
                     return Err(usage(format!(

@@ -65,6 +65,9 @@ pub enum Branches {
     SignedDist,
     /// The probability that the action moves the object (the Where2Act-style baseline).
     Binary,
+    /// No candidate scoring: the decoder regresses the direction that turns the
+    /// current observation into the reference one (the Inverse baseline, goal task only).
+    Inverse,
 }
 
 /// Scores of candidate directions: distance >= 0 and AoT class probabilities (-1, 0, +1).
@@ -196,11 +199,13 @@ impl ModelPackage {
             (Branches::SignedDist, vec!["signed_distance".to_string()])
         } else if has("binary") {
             (Branches::Binary, vec!["success_prob".to_string()])
+        } else if has("inverse") {
+            (Branches::Inverse, vec!["predicted_direction".to_string()])
         } else {
             return Err(pkg_err(
                 &meta_path,
                 format!(
-                    "`branches` {:?}: expected [dist, aot], [aot], [signed_dist] or [binary]",
+                    "`branches` {:?}: expected [dist, aot], [aot], [signed_dist], [binary] or [inverse]",
                     meta.branches
                 ),
             ));
@@ -261,7 +266,7 @@ impl ModelPackage {
                 .map(|n| {
                     (
                         n.as_str(),
-                        if n == "aot_probs" {
+                        if n == "aot_probs" || n == "predicted_direction" {
                             vec![-1, 3]
                         } else {
                             vec![-1]
@@ -269,16 +274,14 @@ impl ModelPackage {
                     )
                 })
                 .collect();
-            check_io(
-                &df,
-                &decoder,
-                &[
-                    ("dist_embedding", vec![-1, e]),
-                    ("aot_embedding", vec![-1, e]),
-                    ("direction", vec![-1, 3]),
-                ],
-                &outs,
-            )?;
+            let mut dec_inputs = vec![
+                ("dist_embedding", vec![-1, e]),
+                ("aot_embedding", vec![-1, e]),
+            ];
+            if branches != Branches::Inverse {
+                dec_inputs.push(("direction", vec![-1, 3]));
+            }
+            check_io(&df, &decoder, &dec_inputs, &outs)?;
             pool.push(Mutex::new(Sessions {
                 position,
                 encoder,
@@ -389,6 +392,12 @@ impl ModelPackage {
         aot_embedding: ArrayView2<f32>,
         direction: ArrayView2<f32>,
     ) -> Result<DirectionScores> {
+        if self.branches == Branches::Inverse {
+            return Err(PolicyError::Input(format!(
+                "{}: an Inverse package predicts one direction (predict_direction); it scores no candidates",
+                self.dir.display()
+            )));
+        }
         let n = direction.shape()[0];
         let e = self.meta.embedding;
         if dist_embedding.shape() != [n, e]
@@ -420,7 +429,6 @@ impl ModelPackage {
             let get2 = |k: &str| -> Result<Array2<f32>> {
                 out[k].try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
             };
-            let _ = &self.decoder_outputs;
             Ok(match self.branches {
                 Branches::DistAot => DirectionScores { distance: get1("distance")?, aot_probs: get2("aot_probs")? },
                 Branches::AotOnly => {
@@ -439,6 +447,9 @@ impl ModelPackage {
                     }
                     DirectionScores { distance: sd.mapv(f32::abs), aot_probs: p }
                 }
+                Branches::Inverse => {
+                    return Err(PolicyError::Input("an Inverse package scores no candidates".into()));
+                }
                 Branches::Binary => {
                     // No arrow of time: a likely success counts as "forward", so the
                     // model explores and never claims to move toward a goal.
@@ -450,6 +461,48 @@ impl ModelPackage {
                     DirectionScores { distance: ps, aot_probs: p }
                 }
             })
+        })
+    }
+
+    /// The Inverse baseline: one unit direction per row of the embeddings.
+    pub fn predict_direction(
+        &self,
+        dist_embedding: ArrayView2<f32>,
+        aot_embedding: ArrayView2<f32>,
+    ) -> Result<Array2<f32>> {
+        if self.branches != Branches::Inverse {
+            return Err(PolicyError::Input(format!(
+                "{}: branches {:?} score candidate directions (decode); only an Inverse package predicts one",
+                self.dir.display(),
+                self.meta.branches
+            )));
+        }
+        let n = dist_embedding.shape()[0];
+        let e = self.meta.embedding;
+        if dist_embedding.shape() != [n, e] || aot_embedding.shape() != [n, e] {
+            return Err(PolicyError::Input(format!(
+                "decoder inputs: embeddings {:?}/{:?}, expected [{n}, {e}]",
+                dist_embedding.shape(),
+                aot_embedding.shape()
+            )));
+        }
+        self.with_sessions(|s| {
+            let file = self.dir.join(&self.meta.files.direction_decoder);
+            let er = |x: ort::Error| ort_err(&file, x);
+            let (a, b) = (dist_embedding.as_standard_layout(), aot_embedding.as_standard_layout());
+            let out = s
+                .decoder
+                .run(ort::inputs![
+                    "dist_embedding" => TensorRef::from_array_view(a.view().into_dyn()).map_err(er)?,
+                    "aot_embedding" => TensorRef::from_array_view(b.view().into_dyn()).map_err(er)?,
+                ])
+                .map_err(er)?;
+            out[self.decoder_outputs[0].as_str()]
+                .try_extract_array::<f32>()
+                .map_err(er)?
+                .to_owned()
+                .into_dimensionality()
+                .map_err(|x| ort_err(&file, x))
         })
     }
 }

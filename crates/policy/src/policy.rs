@@ -3,7 +3,7 @@
 use crate::cem::{CemResult, Mode, Score, first_round, second_round, select};
 use crate::error::{PolicyError, Result};
 use crate::observation::CHANNELS;
-use crate::package::ModelPackage;
+use crate::package::{Branches, ModelPackage};
 use nalgebra::Vector3;
 use ndarray::{Array2, Array4, ArrayView3, Axis};
 use rand_chacha::ChaCha8Rng;
@@ -132,6 +132,9 @@ impl UmpnetPolicy {
             pix[[i, 1]] = inp.pixel.1.min(w - 1) as i64;
         }
         let (de, ae) = self.package.encode(obs.view(), refs.view(), pix.view())?;
+        if self.package.branches == Branches::Inverse {
+            return self.inverse(inputs, &de, &ae);
+        }
         let first: Vec<Vec<Vector3<f32>>> = inputs
             .iter()
             .zip(rngs.iter_mut())
@@ -156,6 +159,39 @@ impl UmpnetPolicy {
                     direction: select(&candidates, &scores, inputs[i].mode),
                     candidates,
                     scores,
+                }
+            })
+            .collect())
+    }
+
+    /// The Inverse baseline acts on its regressed direction as it is: it has
+    /// no scores to search over and no notion of having arrived, so it never stops.
+    fn inverse(
+        &self,
+        inputs: &[DecisionInput],
+        de: &Array2<f32>,
+        ae: &Array2<f32>,
+    ) -> Result<Vec<CemResult>> {
+        if inputs.iter().any(|i| i.mode != Mode::Goal) {
+            return Err(PolicyError::Input(format!(
+                "{}: the Inverse model needs a goal to invert toward; it serves only the goal task",
+                self.package.dir.display()
+            )));
+        }
+        let pred = self.package.predict_direction(de.view(), ae.view())?;
+        Ok(pred
+            .rows()
+            .into_iter()
+            .map(|r| {
+                let v = Vector3::new(r[0], r[1], r[2]);
+                let d = v.try_normalize(1e-6).unwrap_or_else(Vector3::z);
+                CemResult {
+                    direction: Some(d),
+                    candidates: vec![d],
+                    scores: vec![Score {
+                        distance: v.norm(),
+                        aot: -1,
+                    }],
                 }
             })
             .collect())
