@@ -163,3 +163,18 @@ def test_inverse_baseline_regresses_one_direction_and_refuses_exploration(tmp_pa
     )  # fmt: skip
     assert res.returncode == 0, res.stderr
     assert len(json.loads(res.stdout)["steps"]) == 2
+
+
+def test_replay_buffer_round_trips_through_resume(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "2", "--save-replay"]) == 0
+    saved = Replay(256, (48, 64, 10))
+    assert saved.load(out / "replay.npz") == 2 and len(saved) > 0
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "3", "--resume", "--save-replay"]) == 0
+    assert f"with {len(saved)} direction samples" in capsys.readouterr().out
+    grown = Replay(256, (48, 64, 10))
+    assert grown.load(out / "replay.npz") == 3 and len(grown) > len(saved)
+    n = len(saved)
+    assert np.array_equal(grown.dir_images[:n], saved.dir_images[:n])  # the old samples survived the resume
+    with pytest.raises(ValueError, match="expected"):
+        Replay(256, (24, 32, 10)).load(out / "replay.npz")

@@ -43,6 +43,7 @@ class Config:
     # Bookkeeping
     seed: int = 0
     checkpoint_every: int = 50
+    save_replay: bool = False  # also write OUT/replay.npz at checkpoints (large: 6400 images per ring)
     eval_every: int = 0
     threads: int = 2
     renderer: str = "auto"

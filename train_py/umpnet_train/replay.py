@@ -7,6 +7,8 @@ turns over more slowly than the samples that use it.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 
@@ -23,6 +25,9 @@ class Ring:
         self.next = (self.next + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
         return i, int(self.generation[i])
+
+
+_RINGS = ("refs", "pos", "dir")
 
 
 class Replay:
@@ -91,6 +96,42 @@ class Replay:
             self.dir_dist[idx],
             self.dir_aot[idx],
         )
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: v for k, v in vars(self).items() if isinstance(v, np.ndarray)}
+
+    def save(self, path, epoch: int) -> None:
+        """Writes the whole buffer (samples and ring positions) so that a resumed
+        run continues on the same data; written beside and renamed, so an
+        interrupted save never replaces a good file with a broken one."""
+        path = Path(path)
+        state = dict(self.arrays(), epoch=np.array(epoch))
+        for name in _RINGS:
+            ring = getattr(self, name)
+            state[f"{name}.generation"] = ring.generation
+            state[f"{name}.counters"] = np.array([ring.size, ring.next, ring.count], np.int64)
+        tmp = path.with_name(path.name + ".tmp")
+        with open(tmp, "wb") as f:
+            np.savez(f, **state)
+        tmp.replace(path)
+
+    def load(self, path) -> int:
+        """Restores a buffer written by `save`; shapes must match this one's.
+        Returns the epoch it was saved at."""
+        with np.load(path) as data:
+            for name, arr in self.arrays().items():
+                if name not in data or data[name].shape != arr.shape:
+                    found = data[name].shape if name in data else "nothing"
+                    raise ValueError(f"{path}: `{name}` has shape {found}, expected {arr.shape}")
+                arr[...] = data[name]
+            for name in _RINGS:
+                ring = getattr(self, name)
+                ring.generation[...] = data[f"{name}.generation"]
+                ring.size, ring.next, ring.count = (int(x) for x in data[f"{name}.counters"])
+            return int(data["epoch"])
+
+    def __len__(self) -> int:
+        return self.dir.size
 
 
 def _balanced(rng: np.random.Generator, groups: list[np.ndarray], batch: int) -> np.ndarray:

@@ -219,6 +219,12 @@ def parse_args(argv=None):
     p.add_argument("--eval-every", type=int, help="epochs between `umpnet eval` runs (0: never)")
     p.add_argument("--renderer", choices=["auto", "wgpu", "cpu"])
     p.add_argument("--device", help="auto, cpu or cuda")
+    p.add_argument(
+        "--save-replay",
+        action="store_const",
+        const=True,
+        help="write the replay buffer beside each checkpoint, so --resume continues on the same data",
+    )
     a = p.parse_args(argv)
     cfg = make_config(
         a.preset,
@@ -230,6 +236,7 @@ def parse_args(argv=None):
         eval_every=a.eval_every,
         renderer=a.renderer,
         device=a.device,
+        save_replay=a.save_replay,
     )
     return cfg, a
 
@@ -283,7 +290,6 @@ def main(argv=None) -> int:
         rng.bit_generator.state = ck["numpy_rng"]
         torch.set_rng_state(ck["torch_rng"])
         start, wall_before = ck["epoch"], ck["provenance"]["wall_seconds"]
-        print(f"resumed at epoch {start} (the replay buffer starts empty)")
     categories = cfg.categories or TRAIN_CATEGORIES
     env = umpnet.VecEnv(
         cfg.num_envs,
@@ -294,6 +300,17 @@ def main(argv=None) -> int:
         renderer=cfg.renderer,
     )
     replay = Replay(cfg.replay_size, (cfg.height, cfg.width, 10))
+    replay_path = out / "replay.npz"
+    if args.resume:
+        if replay_path.is_file():
+            saved_at = replay.load(replay_path)
+            print(f"resumed at epoch {start} with {len(replay)} direction samples in the replay buffer")
+            if saved_at != start:
+                print(
+                    f"warning: {replay_path} was saved at epoch {saved_at}, the checkpoint at {start}", file=sys.stderr
+                )
+        else:
+            print(f"resumed at epoch {start}; the replay buffer starts empty (no {replay_path}: see --save-replay)")
     writer = SummaryWriter(str(out / "tb"))
     umpnet_bin = str(Path(__file__).resolve().parents[2] / "target" / "release" / "umpnet")
     command = "python -m umpnet_train.train " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
@@ -348,6 +365,8 @@ def main(argv=None) -> int:
                 "epoch": epoch + 1,
                 "provenance": provenance(epoch + 1),
             }
+            if cfg.save_replay:
+                replay.save(replay_path, epoch + 1)
             torch.save(ck, out / "checkpoint.tmp")
             (out / "checkpoint.tmp").replace(ckpt_path)  # never leaves a half-written checkpoint
         if cfg.eval_every and (epoch + 1) % cfg.eval_every == 0:
