@@ -7,7 +7,7 @@ pub mod error;
 pub mod observation;
 
 pub use error::{PolicyError, Result};
-pub use observation::{CHANNELS, CameraFrame, build_observation};
+pub use observation::{CHANNELS, CameraFrame, build_observation, build_observation_into};
 pub mod package;
 pub mod policy;
 pub mod runtime;

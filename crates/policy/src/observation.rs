@@ -95,102 +95,124 @@ impl CameraFrame<'_> {
     }
 }
 
+/// Rows per parallel task: each band back-projects its rows plus one above
+/// and one below, so bands share nothing and the overlap costs 2/BAND.
+const BAND: usize = 16;
+
 /// Builds the H x W x 10 observation. Normals come from the depth image: the
 /// cross product of the horizontal and vertical differences, each taken
 /// toward the neighbour closer in depth so that edges do not bleed.
 pub fn build_observation(frame: &CameraFrame) -> Result<Array3<f32>> {
+    let mut out = vec![0f32; frame.height * frame.width * CHANNELS];
+    build_observation_into(frame, &mut out)?;
+    Array3::from_shape_vec((frame.height, frame.width, CHANNELS), out)
+        .map_err(|e| PolicyError::Input(format!("observation shape: {e}")))
+}
+
+/// [`build_observation`] into a caller's buffer (H x W x 10, row-major), so
+/// that a control loop reuses one allocation; every element is overwritten.
+pub fn build_observation_into(frame: &CameraFrame, out: &mut [f32]) -> Result<()> {
     frame.validate()?;
     let (h, w) = (frame.height, frame.width);
+    if out.len() != h * w * CHANNELS {
+        return Err(PolicyError::Input(format!(
+            "output buffer has {} values, expected {} ({h}x{w}x{CHANNELS})",
+            out.len(),
+            h * w * CHANNELS
+        )));
+    }
+    out.par_chunks_mut(BAND * w * CHANNELS)
+        .enumerate()
+        .for_each(|(b, band)| observation_band(frame, b * BAND, band));
+    Ok(())
+}
+
+/// World points (None without depth) of rows `rows`, row-major.
+fn points_in_world(frame: &CameraFrame, rows: std::ops::Range<usize>) -> Vec<Option<[f32; 3]>> {
+    let w = frame.width;
     let m = &frame.world_from_camera;
     let [fx, fy, cx, cy] = frame.intrinsics;
     let (ifx, ify) = (1.0 / fx, 1.0 / fy);
+    let mut pts = Vec::with_capacity(rows.len() * w);
+    for r in rows {
+        let yc = (r as f32 + 0.5 - cy) * ify;
+        for (c, &d) in frame.depth[r * w..(r + 1) * w].iter().enumerate() {
+            pts.push((d.is_finite() && d > 0.0).then(|| {
+                let (x, y) = ((c as f32 + 0.5 - cx) * ifx * d, yc * d);
+                [0, 1, 2].map(|k| m[k][0] * x + m[k][1] * y + m[k][2] * d + m[k][3])
+            }));
+        }
+    }
+    pts
+}
+
+fn observation_band(frame: &CameraFrame, r0: usize, band: &mut [f32]) {
+    let (h, w) = (frame.height, frame.width);
+    let rows = band.len() / (w * CHANNELS);
+    let p0 = r0.saturating_sub(1);
+    let pts = points_in_world(frame, p0..(r0 + rows + 1).min(h));
+    let m = &frame.world_from_camera;
     let eye = [m[0][3], m[1][3], m[2][3]];
-    // Pass 1: world points, colour and depth; rows in parallel.
-    let mut out = vec![0f32; h * w * CHANNELS];
-    let mut points = vec![[0f32; 3]; h * w];
-    let mut valid = vec![false; h * w];
-    out.par_chunks_mut(w * CHANNELS)
-        .zip(points.par_chunks_mut(w))
-        .zip(valid.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(r, ((out_row, points_row), valid_row))| {
-            let yc = (r as f32 + 0.5 - cy) * ify;
-            for c in 0..w {
-                let i = r * w + c;
-                let o = &mut out_row[c * CHANNELS..(c + 1) * CHANNELS];
-                for k in 0..3 {
-                    o[3 + k] = frame.rgb[i * 3 + k] as f32 * (1.0 / 255.0);
-                }
-                let d = frame.depth[i];
-                if !(d.is_finite() && d > 0.0) {
-                    continue;
-                }
-                let p_cam = [(c as f32 + 0.5 - cx) * ifx * d, yc * d, d];
-                let mut p = [0f32; 3];
-                for (k, pk) in p.iter_mut().enumerate() {
-                    *pk = m[k][0] * p_cam[0] + m[k][1] * p_cam[1] + m[k][2] * p_cam[2] + m[k][3];
-                }
-                o[..3].copy_from_slice(&p);
-                o[9] = d;
-                points_row[c] = p;
-                valid_row[c] = true;
-            }
-        });
-    // Pass 2: normals from neighbouring points; rows in parallel.
     let sub = |a: [f32; 3], b: [f32; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    let (points, valid) = (&points, &valid);
-    out.par_chunks_mut(w * CHANNELS)
-        .enumerate()
-        .for_each(|(r, out_row)| {
-            for c in 0..w {
-                let i = r * w + c;
-                if !valid[i] {
-                    continue;
-                }
-                let (p, d0) = (points[i], frame.depth[i]);
-                // Difference toward the neighbour closer in depth, signed as "after minus before".
-                let diff = |before: Option<usize>, after: Option<usize>| -> Option<[f32; 3]> {
-                    let b = before.filter(|&j| valid[j]);
-                    let a = after.filter(|&j| valid[j]);
-                    match (b, a) {
-                        (Some(j), Some(k))
-                            if (frame.depth[j] - d0).abs() <= (frame.depth[k] - d0).abs() =>
-                        {
-                            Some(sub(p, points[j]))
-                        }
-                        (_, Some(k)) => Some(sub(points[k], p)),
-                        (Some(j), None) => Some(sub(p, points[j])),
-                        (None, None) => None,
+    let depth = frame.depth;
+    for (k, out_row) in band.chunks_exact_mut(w * CHANNELS).enumerate() {
+        let r = r0 + k;
+        let pr = r - p0; // this row in `pts`
+        for (c, o) in out_row.chunks_exact_mut(CHANNELS).enumerate() {
+            let i = r * w + c;
+            let rgb = &frame.rgb[i * 3..i * 3 + 3];
+            o[3] = rgb[0] as f32 * (1.0 / 255.0);
+            o[4] = rgb[1] as f32 * (1.0 / 255.0);
+            o[5] = rgb[2] as f32 * (1.0 / 255.0);
+            let Some(p) = pts[pr * w + c] else {
+                o[..3].fill(0.0);
+                o[6..].fill(0.0);
+                continue;
+            };
+            o[..3].copy_from_slice(&p);
+            o[9] = depth[i];
+            let d0 = depth[i];
+            // Difference toward the neighbour closer in depth, signed as "after minus before".
+            let diff = |before: Option<(usize, usize)>, after: Option<(usize, usize)>| {
+                let at = |(j, q): (usize, usize)| pts[q].map(|pt| (depth[j], pt));
+                match (before.and_then(at), after.and_then(at)) {
+                    (Some((db, pb)), Some((da, _))) if (db - d0).abs() <= (da - d0).abs() => {
+                        Some(sub(p, pb))
                     }
-                };
-                let dx = diff((c > 0).then(|| i - 1), (c + 1 < w).then(|| i + 1));
-                let dy = diff((r > 0).then(|| i - w), (r + 1 < h).then(|| i + w));
-                let (Some(a), Some(b)) = (dx, dy) else {
-                    continue;
-                };
-                let mut n = [
-                    a[1] * b[2] - a[2] * b[1],
-                    a[2] * b[0] - a[0] * b[2],
-                    a[0] * b[1] - a[1] * b[0],
-                ];
-                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                if len <= 0.0 {
-                    continue;
+                    (_, Some((_, pa))) => Some(sub(pa, p)),
+                    (Some((_, pb)), None) => Some(sub(p, pb)),
+                    (None, None) => None,
                 }
+            };
+            let q = pr * w + c;
+            let dx = diff(
+                (c > 0).then(|| (i - 1, q - 1)),
+                (c + 1 < w).then(|| (i + 1, q + 1)),
+            );
+            let dy = diff(
+                (r > 0).then(|| (i - w, q - w)),
+                (r + 1 < h).then(|| (i + w, q + w)),
+            );
+            o[6..9].fill(0.0);
+            let (Some(a), Some(b)) = (dx, dy) else {
+                continue;
+            };
+            let n = [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ];
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if len > 0.0 {
                 let to_eye = sub(eye, p);
-                let sign = if n[0] * to_eye[0] + n[1] * to_eye[1] + n[2] * to_eye[2] < 0.0 {
-                    -1.0
-                } else {
-                    1.0
-                };
-                for v in &mut n {
-                    *v *= sign / len;
-                }
-                out_row[c * CHANNELS + 6..c * CHANNELS + 9].copy_from_slice(&n);
+                let facing = n[0] * to_eye[0] + n[1] * to_eye[1] + n[2] * to_eye[2];
+                let scale = if facing < 0.0 { -1.0 } else { 1.0 } / len;
+                o[6] = n[0] * scale;
+                o[7] = n[1] * scale;
+                o[8] = n[2] * scale;
             }
-        });
-    Array3::from_shape_vec((h, w, CHANNELS), out)
-        .map_err(|e| PolicyError::Input(format!("observation shape: {e}")))
+        }
+    }
 }
 
 #[cfg(test)]
@@ -228,6 +250,24 @@ mod tests {
                 assert!((obs[[r, c, 3]] - 128.0 / 255.0).abs() < 1e-6);
             }
         }
+        // Reusing a dirty buffer gives the same tensor, holes included: every element is written.
+        let mut holed = depth.clone();
+        holed[3] = 0.0;
+        holed[w * 2 + 5] = f32::NAN;
+        let frame_holed = CameraFrame {
+            depth: &holed,
+            ..frame
+        };
+        let fresh = build_observation(&frame_holed).unwrap();
+        assert_eq!(fresh[[0, 3, 9]], 0.0);
+        let mut reused = vec![f32::NAN; h * w * CHANNELS];
+        build_observation_into(&frame_holed, &mut reused).unwrap();
+        assert_eq!(reused.as_slice(), fresh.as_slice().unwrap());
+        let err = build_observation_into(&frame, &mut reused[..5]).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("output buffer has 5 values, expected 480")
+        );
         let bad = CameraFrame {
             rgb: &rgb[..10],
             ..frame

@@ -5,6 +5,7 @@ use super::{Frame, RenderMesh, Renderer};
 use crate::camera::Camera;
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Vec3};
+use rayon::prelude::*;
 use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::util::DeviceExt;
 
@@ -332,7 +333,7 @@ impl Renderer for GpuRenderer {
             *slot = t.to_cols_array_2d();
         }
         let gpu = self.gpu.clone();
-        let _guard = gpu
+        let guard = gpu
             .lock
             .lock()
             .map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
@@ -427,28 +428,40 @@ impl Renderer for GpuRenderer {
             };
             let color = mapped(&t.color_buf)?;
             let data = mapped(&t.data_buf)?;
-            let (cp, dp) = (padded(w * 4) as usize, padded(w * 16) as usize);
-            for row in 0..h as usize {
-                let crow = &color[row * cp..row * cp + w as usize * 4];
-                let drow: &[u32] =
-                    bytemuck::cast_slice(&data[row * dp..row * dp + w as usize * 16]);
-                for col in 0..w as usize {
-                    let i = row * w as usize + col;
-                    frame.rgb[i * 3..i * 3 + 3].copy_from_slice(&crow[col * 4..col * 4 + 3]);
-                    let d = &drow[col * 4..col * 4 + 4];
-                    let seg = d[1];
-                    if seg == super::SEG_BACKGROUND {
-                        continue;
+            // The device is free once the frame is mapped. Releasing the lock
+            // also keeps the parallel unpack below from deadlocking: a rayon
+            // worker waiting here may steal another renderer's frame.
+            drop(guard);
+            let (cp, dp, wu) = (padded(w * 4) as usize, padded(w * 16) as usize, w as usize);
+            // Rows unpack independently; on lavapipe this copy is a large share of a frame.
+            frame
+                .rgb
+                .par_chunks_mut(wu * 3)
+                .zip(frame.depth.par_chunks_mut(wu))
+                .zip(frame.segmentation.par_chunks_mut(wu))
+                .zip(frame.normal_in_world.par_chunks_mut(wu))
+                .enumerate()
+                .for_each(|(row, (((rgb, depth), seg), normal))| {
+                    let crow = &color[row * cp..row * cp + wu * 4];
+                    let drow: &[u32] = bytemuck::cast_slice(&data[row * dp..row * dp + wu * 16]);
+                    for col in 0..wu {
+                        rgb[col * 3..col * 3 + 3].copy_from_slice(&crow[col * 4..col * 4 + 3]);
+                        let d = &drow[col * 4..col * 4 + 4];
+                        if d[1] == super::SEG_BACKGROUND {
+                            continue;
+                        }
+                        depth[col] = f32::from_bits(d[0]);
+                        seg[col] = d[1];
+                        let (nx, ny) = unpack_snorm(d[2]);
+                        let (nz, _) = unpack_snorm(d[3]);
+                        normal[col] = Vec3::new(nx, ny, nz).normalize_or_zero().to_array();
                     }
-                    frame.depth[i] = f32::from_bits(d[0]);
-                    frame.segmentation[i] = seg;
-                    let (nx, ny) = unpack_snorm(d[2]);
-                    let (nz, _) = unpack_snorm(d[3]);
-                    let nv = Vec3::new(nx, ny, nz).normalize_or_zero();
-                    frame.normal_in_world[i] = nv.to_array();
-                }
-            }
+                });
         }
+        let _guard = gpu
+            .lock
+            .lock()
+            .map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
         t.color_buf.unmap();
         t.data_buf.unmap();
         Ok(frame)
