@@ -171,21 +171,24 @@ pub fn run(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
         println!("{}", serde_json::Value::Array(rows));
     } else {
         println!(
-            "{:<30} {:<36} {:<34} {:>10} {:>8}",
-            "figure", "object", "renderer", "median ms", "target"
+            "{:<28} {:<34} {:<46} {:>9} {:>8} {:>8} {:>7}",
+            "figure", "object", "renderer", "median ms", "render", "tensor", "target"
         );
+        let ms = |r: &serde_json::Value, k: &str| {
+            r[k].as_f64()
+                .map(|t| format!("{t:.2}"))
+                .unwrap_or_else(|| "-".into())
+        };
         for r in &rows {
-            let target = r["target_ms"]
-                .as_f64()
-                .map(|t| format!("{t:.1}"))
-                .unwrap_or_else(|| "-".into());
             println!(
-                "{:<30} {:<36} {:<34} {:>10.3} {:>8}",
+                "{:<28} {:<34} {:<46} {:>9.3} {:>8} {:>8} {:>7}",
                 r["figure"].as_str().unwrap_or(""),
                 r["object"].as_str().unwrap_or(""),
                 r["renderer"].as_str().unwrap_or("rapier3d"),
                 r["median_ms"].as_f64().unwrap_or(f64::NAN),
-                target
+                ms(r, "render_ms"),
+                ms(r, "tensor_ms"),
+                ms(r, "target_ms"),
             );
         }
     }
