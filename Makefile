@@ -7,7 +7,7 @@ export XDG_RUNTIME_DIR ?= /tmp
 FIXTURE := $(CURDIR)/target/fixture
 export UMPNET_FIXTURE := $(FIXTURE)
 
-.PHONY: install build py fixture demo test lint test-rust test-python clean
+.PHONY: install build py fixture demo eval-baselines test lint test-rust test-python clean
 
 install:
 	@bash scripts/install.sh
@@ -34,6 +34,15 @@ demo: build
 	$(UMPNET) eval --task goal --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-goal
 	$(UMPNET) bench --frames 20 --actions 100
 	@echo "pictures, tables and plots in out/"
+
+# The issue-7 comparison: the shipped model, the paper's baselines (models/baselines),
+# random and oracle on the same scenes, both tasks, both splits.
+B := models/baselines
+EXPLORE_POLICIES := umpnet,single-step=$(B)/single-step,aot-only=$(B)/aot-only,signed-dist=$(B)/signed-dist,where2act=$(B)/where2act,where2act-normal90=$(B)/where2act-normal90,random,oracle
+EPISODES ?= 50
+eval-baselines: build
+	$(UMPNET) eval --task exploration --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES) --out out/baselines-exploration
+	$(UMPNET) eval --task goal --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --out out/baselines-goal
 
 lint: install
 	cargo fmt --all --check

@@ -197,6 +197,12 @@ fn render_table(
 ) -> String {
     let mut s = String::new();
     let short = |c: &Category| c.name().chars().take(7).collect::<String>();
+    let width = policies
+        .iter()
+        .map(|p| p.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(10);
     for (metric, title) in metrics_of(task) {
         let _ = writeln!(s, "\n{title}");
         for (split_name, train) in [
@@ -210,13 +216,13 @@ fn render_table(
             if cats.is_empty() {
                 continue;
             }
-            let _ = write!(s, "  {split_name}\n  {:<10}", "method");
+            let _ = write!(s, "  {split_name}\n  {:<width$}", "method");
             for c in &cats {
                 let _ = write!(s, " {:>7}", short(c));
             }
             let _ = writeln!(s, " {:>7}", "avg");
             for p in policies {
-                let _ = write!(s, "  {p:<10}");
+                let _ = write!(s, "  {p:<width$}");
                 let mut means = Vec::new();
                 for c in &cats {
                     match cells.get(&(p.clone(), **c, *metric)) {
