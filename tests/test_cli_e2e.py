@@ -127,3 +127,23 @@ def test_learned_policy_episode_and_infer(tmp_path):
     bad = run("infer", "--rgb", str(tmp_path / "color.png"), "--depth", str(tmp_path / "depth.npy"),
               "--intrinsics", "1,2", "--camera-pose", pose, "--model", fixture, check=False)  # fmt: skip
     assert bad.returncode == 2 and "--intrinsics" in bad.stderr
+
+
+BASELINES = ["single-step", "aot-only", "signed-dist", "where2act", "where2act-normal90", "inverse"]
+
+
+def test_shipped_baselines_load_and_run_the_benchmark(tmp_path):
+    specs = ",".join(f"{b}={ROOT / 'models' / 'baselines' / b}" for b in BASELINES)
+    run("eval", "--task", "goal", "--categories", "Door,Laptop", "--episodes-per-category", "2",
+        "--policies", f"umpnet,{specs}", "--out", str(tmp_path))  # fmt: skip
+    rows = [line.split(",") for line in (tmp_path / "results.csv").read_text().splitlines()[1:]]
+    for b in BASELINES:
+        counts = [int(r[-1]) for r in rows if r[0] == b]
+        assert counts and all(n == 2 for n in counts), f"{b}: episodes failed or missing"
+    for b in BASELINES:
+        meta = json.loads((ROOT / "models" / "baselines" / b / "model.json").read_text())
+        assert meta["provenance"]["epochs"] == 300 and meta["provenance"]["seed"] == 0
+    # The Inverse model has no exploration behaviour: a clear usage error, not a failed episode.
+    p = run("eval", "--task", "exploration", "--categories", "Door", "--episodes-per-category", "1",
+            "--policies", f"inverse={ROOT / 'models' / 'baselines' / 'inverse'}", check=False)  # fmt: skip
+    assert p.returncode == 2 and "serves only the goal task" in p.stderr
