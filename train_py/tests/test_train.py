@@ -27,6 +27,14 @@ def test_presets_and_config_errors():
         make_config("smoke", lr_typo=1.0)
 
 
+def test_direction_widths_flag(capsys):
+    cfg, _ = train.parse_args(["--out", "x", "--direction-widths", "8,16,32,64"])
+    assert cfg.direction_widths == (8, 16, 32, 64) and cfg.position_widths == (8, 16, 32)
+    with pytest.raises(SystemExit) as e:
+        train.parse_args(["--out", "x", "--direction-widths", "8,0"])
+    assert e.value.code == 2 and "expected positive integers" in capsys.readouterr().err
+
+
 def test_curriculum_and_schedules():
     cfg = make_config("paper")
     assert train.sequence_length(cfg, 0) == 4 and train.sequence_length(cfg, 999) == 4

@@ -205,6 +205,18 @@ def git_commit() -> str:
         return "unknown"
 
 
+def _widths(parser, text):
+    if text is None:
+        return None
+    try:
+        widths = tuple(int(x) for x in text.split(","))
+    except ValueError:
+        widths = ()
+    if not widths or min(widths) <= 0:
+        parser.error(f"--direction-widths {text!r}: expected positive integers separated by commas, e.g. 8,16,32")
+    return widths
+
+
 def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--preset", default="cpu-small", help="paper, cpu-small or smoke")
@@ -219,6 +231,7 @@ def parse_args(argv=None):
     p.add_argument("--eval-every", type=int, help="epochs between `umpnet eval` runs (0: never)")
     p.add_argument("--renderer", choices=["auto", "wgpu", "cpu"])
     p.add_argument("--device", help="auto, cpu or cuda")
+    p.add_argument("--direction-widths", help="DirectionNet U-Net widths per level, e.g. 8,16,32,64")
     p.add_argument(
         "--save-replay",
         action="store_const",
@@ -237,6 +250,7 @@ def parse_args(argv=None):
         renderer=a.renderer,
         device=a.device,
         save_replay=a.save_replay,
+        direction_widths=_widths(p, a.direction_widths),
     )
     return cfg, a
 
