@@ -80,14 +80,14 @@ class Replay:
         alive = self.refs.generation[self.dir_ref[:n]] == self.dir_ref_gen[:n]
         aot = self.dir_aot[:n]
         if groups == "binary":
-            groups = [np.flatnonzero(alive & (aot == 0)), np.flatnonzero(alive & (aot != 0))]
+            pools = [np.flatnonzero(alive & (aot == 0)), np.flatnonzero(alive & (aot != 0))]
         elif groups == "moved":
-            groups = [np.flatnonzero(alive & (aot != 0))]
+            pools = [np.flatnonzero(alive & (aot != 0))]
         elif groups == "aot":
-            groups = [np.flatnonzero(alive & (aot == k)) for k in (-1, 0, 1)]
+            pools = [np.flatnonzero(alive & (aot == k)) for k in (-1, 0, 1)]
         else:
             raise ValueError(f"groups is {groups!r}, expected aot, binary or moved")
-        idx = _balanced(rng, groups, batch)
+        idx = _balanced(rng, pools, batch)
         return (
             self.dir_images[idx],
             self.ref_images[self.dir_ref[idx]],

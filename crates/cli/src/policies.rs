@@ -6,7 +6,6 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use umpnet_eval::bench::PolicyFactory;
 use umpnet_eval::learned::LearnedPolicy;
-use umpnet_policy::Branches;
 use umpnet_sim::scene::Task;
 
 /// The shipped model, looked for beside the working directory and the executable.
@@ -71,7 +70,7 @@ pub fn resolve(
                 }
                 let pkg = LearnedPolicy::load(&dir, sessions)
                     .with_context(|| format!("loading policy `{name}`"))?;
-                if pkg.branches == Branches::Inverse && task != Task::Goal {
+                if pkg.branches.goal_only() && task != Task::Goal {
                     return Err(usage(format!(
                         "policy `{name}`: {} is an Inverse package, which serves only the goal task",
                         dir.display()

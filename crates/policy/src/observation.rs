@@ -2,7 +2,7 @@
 //! colour, depth, intrinsics and the camera pose. Channels: world xyz (3),
 //! rgb in [0, 1] (3), surface normal facing the camera (3), depth in metres (1).
 use crate::error::{PolicyError, Result};
-use nalgebra::{Matrix4, Point3, Vector3};
+use nalgebra::Vector3;
 use ndarray::Array3;
 use rayon::prelude::*;
 
@@ -67,26 +67,24 @@ impl CameraFrame<'_> {
         Ok(())
     }
 
-    fn pose(&self) -> Matrix4<f32> {
-        let m = &self.world_from_camera;
-        Matrix4::from_fn(|r, c| m[r][c])
-    }
-
     fn valid_depth(&self, i: usize) -> Option<f32> {
         let d = self.depth[i];
         (d.is_finite() && d > 0.0).then_some(d)
     }
 
+    /// Pixel centre at depth `d`, in the world frame.
+    fn back_project(&self, row: usize, col: usize, d: f32) -> [f32; 3] {
+        let m = &self.world_from_camera;
+        let [fx, fy, cx, cy] = self.intrinsics;
+        let x = (col as f32 + 0.5 - cx) * (1.0 / fx) * d;
+        let y = (row as f32 + 0.5 - cy) * (1.0 / fy) * d;
+        [0, 1, 2].map(|k| m[k][0] * x + m[k][1] * y + m[k][2] * d + m[k][3])
+    }
+
     /// Pixel centre back-projected to the world frame.
     pub fn point_in_world(&self, row: usize, col: usize) -> Option<Vector3<f32>> {
         let d = self.valid_depth(row * self.width + col)?;
-        let [fx, fy, cx, cy] = self.intrinsics;
-        let p = Point3::new(
-            (col as f32 + 0.5 - cx) / fx * d,
-            (row as f32 + 0.5 - cy) / fy * d,
-            d,
-        );
-        Some(self.pose().transform_point(&p).coords)
+        Some(Vector3::from(self.back_project(row, col, d)))
     }
 
     pub fn camera_position(&self) -> Vector3<f32> {
@@ -130,17 +128,14 @@ pub fn build_observation_into(frame: &CameraFrame, out: &mut [f32]) -> Result<()
 /// World points (None without depth) of rows `rows`, row-major.
 fn points_in_world(frame: &CameraFrame, rows: std::ops::Range<usize>) -> Vec<Option<[f32; 3]>> {
     let w = frame.width;
-    let m = &frame.world_from_camera;
-    let [fx, fy, cx, cy] = frame.intrinsics;
-    let (ifx, ify) = (1.0 / fx, 1.0 / fy);
     let mut pts = Vec::with_capacity(rows.len() * w);
     for r in rows {
-        let yc = (r as f32 + 0.5 - cy) * ify;
-        for (c, &d) in frame.depth[r * w..(r + 1) * w].iter().enumerate() {
-            pts.push((d.is_finite() && d > 0.0).then(|| {
-                let (x, y) = ((c as f32 + 0.5 - cx) * ifx * d, yc * d);
-                [0, 1, 2].map(|k| m[k][0] * x + m[k][1] * y + m[k][2] * d + m[k][3])
-            }));
+        for c in 0..w {
+            pts.push(
+                frame
+                    .valid_depth(r * w + c)
+                    .map(|d| frame.back_project(r, c, d)),
+            );
         }
     }
     pts
@@ -151,8 +146,7 @@ fn observation_band(frame: &CameraFrame, r0: usize, band: &mut [f32]) {
     let rows = band.len() / (w * CHANNELS);
     let p0 = r0.saturating_sub(1);
     let pts = points_in_world(frame, p0..(r0 + rows + 1).min(h));
-    let m = &frame.world_from_camera;
-    let eye = [m[0][3], m[1][3], m[2][3]];
+    let eye: [f32; 3] = frame.camera_position().into();
     let sub = |a: [f32; 3], b: [f32; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     let depth = frame.depth;
     for (k, out_row) in band.chunks_exact_mut(w * CHANNELS).enumerate() {

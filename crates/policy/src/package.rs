@@ -70,6 +70,13 @@ pub enum Branches {
     Inverse,
 }
 
+impl Branches {
+    /// Packages that act only toward a goal observation (no exploration behaviour).
+    pub fn goal_only(self) -> bool {
+        self == Branches::Inverse
+    }
+}
+
 /// Scores of candidate directions: distance >= 0 and AoT class probabilities (-1, 0, +1).
 #[derive(Clone, Debug)]
 pub struct DirectionScores {

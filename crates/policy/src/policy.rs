@@ -111,6 +111,12 @@ impl UmpnetPolicy {
         if inputs.is_empty() {
             return Ok(Vec::new());
         }
+        if self.package.branches.goal_only() && inputs.iter().any(|i| i.mode != Mode::Goal) {
+            return Err(PolicyError::Input(format!(
+                "{}: the Inverse model needs a goal to invert toward; it serves only the goal task",
+                self.package.dir.display()
+            )));
+        }
         let (h, w) = self.resolution();
         let b = inputs.len();
         let mut obs = Array4::<f32>::zeros((b, h, w, CHANNELS));
@@ -133,7 +139,7 @@ impl UmpnetPolicy {
         }
         let (de, ae) = self.package.encode(obs.view(), refs.view(), pix.view())?;
         if self.package.branches == Branches::Inverse {
-            return self.inverse(inputs, &de, &ae);
+            return self.inverse(&de, &ae);
         }
         let first: Vec<Vec<Vector3<f32>>> = inputs
             .iter()
@@ -166,18 +172,7 @@ impl UmpnetPolicy {
 
     /// The Inverse baseline acts on its regressed direction as it is: it has
     /// no scores to search over and no notion of having arrived, so it never stops.
-    fn inverse(
-        &self,
-        inputs: &[DecisionInput],
-        de: &Array2<f32>,
-        ae: &Array2<f32>,
-    ) -> Result<Vec<CemResult>> {
-        if inputs.iter().any(|i| i.mode != Mode::Goal) {
-            return Err(PolicyError::Input(format!(
-                "{}: the Inverse model needs a goal to invert toward; it serves only the goal task",
-                self.package.dir.display()
-            )));
-        }
+    fn inverse(&self, de: &Array2<f32>, ae: &Array2<f32>) -> Result<Vec<CemResult>> {
         let pred = self.package.predict_direction(de.view(), ae.view())?;
         Ok(pred
             .rows()
