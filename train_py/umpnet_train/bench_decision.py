@@ -17,14 +17,14 @@ import numpy as np
 import torch
 import umpnet
 
-from .config import Config
+from .config import Config, config_from_checkpoint
 from .models import OBS_MEAN, UMPNet
 
 
 def torch_model(package: Path) -> tuple[UMPNet, Config]:
     meta = json.loads((package / "model.json").read_text())
-    cfg = Config(
-        **{k: tuple(v) if isinstance(v, list) and k.endswith("widths") else v for k, v in meta["config"].items()}
+    cfg = config_from_checkpoint(
+        {k: tuple(v) if isinstance(v, list) and k.endswith("widths") else v for k, v in meta["config"].items()}
     )
     return UMPNet(cfg).eval(), cfg
 

@@ -15,6 +15,9 @@ class Config:
     direction_widths: tuple[int, ...] = (32, 64, 128, 256)
     embedding: int = 64
     action_embedding: int = 32
+    # "context": difference channels, global context, bilinear heads (models.py);
+    # "plain": the direction network of the packages shipped before it.
+    direction_net: str = "context"
     variant: str = "umpnet"  # umpnet | single-step | aot-only | signed-dist | where2act | inverse
     # Data collection (paper: 64 environments, 6400-sample FIFO replay buffer)
     num_envs: int = 64
@@ -100,4 +103,11 @@ def make_config(preset: str = "paper", **overrides) -> Config:
     unknown = set(values) - names
     if unknown:
         raise ValueError(f"unknown config fields {sorted(unknown)}")
+    if values.get("direction_net", "context") not in ("context", "plain"):
+        raise ValueError(f"direction_net {values['direction_net']!r}: expected 'context' or 'plain'")
     return Config(**values)
+
+
+def config_from_checkpoint(saved: dict) -> Config:
+    """Checkpoints written before `direction_net` existed used the plain network."""
+    return Config(**{"direction_net": "plain", **saved})

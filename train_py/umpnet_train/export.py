@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .config import Config
+from .config import Config, config_from_checkpoint
 from .models import CHANNELS, OBS_MEAN, OBS_STD, UMPNet, uses_reference
 
 FORMAT_VERSION = 1
@@ -217,7 +217,7 @@ def main(argv=None) -> int:
         print(f"error: {a.checkpoint}: no such checkpoint", file=sys.stderr)
         return 2
     ck = torch.load(a.checkpoint, map_location="cpu", weights_only=False)
-    cfg = Config(**ck["config"])
+    cfg = config_from_checkpoint(ck["config"])
     model = UMPNet(cfg)
     model.load_state_dict(ck["model"])
     worst = export_model(model, cfg, a.out, ck.get("provenance", {}), ck.get("evaluation"), a.direction_filter)

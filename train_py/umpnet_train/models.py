@@ -43,15 +43,21 @@ def block(cin: int, cout: int, stride: int = 1) -> nn.Sequential:
 
 
 class UNet(nn.Module):
-    """A small U-Net: widths[0] at full resolution, halving resolution per level."""
+    """A small U-Net: widths[0] at full resolution, halving resolution per level.
 
-    def __init__(self, cin: int, widths: tuple[int, ...], cout: int):
+    With `global_context`, the mean of the coarsest features is added to every
+    output pixel: a small U-Net's receptive field does not span a whole object,
+    yet whether a move heads away from the reference depends on where the part
+    is as a whole (hinge side, how far it already moved)."""
+
+    def __init__(self, cin: int, widths: tuple[int, ...], cout: int, global_context: bool = False):
         super().__init__()
         self.down = nn.ModuleList([block(cin, widths[0])])
         for a, b in itertools.pairwise(widths):
             self.down.append(block(a, b, stride=2))
         self.up = nn.ModuleList([block(b + a, a) for a, b in itertools.pairwise(widths)])
         self.head = nn.Conv2d(widths[0], cout, 1)
+        self.context = nn.Linear(widths[-1], cout) if global_context else None
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         skips = []
@@ -59,11 +65,12 @@ class UNet(nn.Module):
             x = d(x)
             skips.append(x)
         x = skips.pop()
+        context = None if self.context is None else self.context(x.mean(dim=(2, 3)))[:, :, None, None]
         for up in reversed(self.up):
             skip = skips.pop()
             x = F.interpolate(x, size=skip.shape[-2:], mode="bilinear", align_corners=False)
             x = up(torch.cat([x, skip], dim=1))
-        return self.head(x)
+        return self.head(x) if context is None else self.head(x) + context
 
 
 class PositionNet(nn.Module):
@@ -86,23 +93,46 @@ def features_at(fmap: torch.Tensor, pixel: torch.Tensor) -> torch.Tensor:
     return torch.gather(fmap.reshape(n, c, h * w), 2, index).squeeze(2)
 
 
+# Scales of the current-minus-reference channels (xyz, normal, depth): a part
+# that moved by a few centimetres should read about 1.
+DIFF_SCALE = [0.1, 0.1, 0.1, 1.0, 1.0, 1.0, 0.1]
+DIFF_CHANNELS = len(DIFF_SCALE)
+
+
+def difference(cur: torch.Tensor, ref: torch.Tensor) -> torch.Tensor:
+    """N x 7 x H x W: how each pixel's point, normal and depth changed since the reference."""
+    d = torch.cat([cur[:, 0:3] - ref[:, 0:3], cur[:, 6:9] - ref[:, 6:9], cur[:, 9:10] - ref[:, 9:10]], dim=1)
+    return d / torch.tensor(DIFF_SCALE, device=d.device).view(1, -1, 1, 1)
+
+
 class DirectionEncoder(nn.Module):
     """Image embeddings at the grasp pixel for the Dist branch (current
-    observation) and the AoT branch (current + reference observation)."""
+    observation) and the AoT branch (current + reference observation).
 
-    def __init__(self, widths: tuple[int, ...], embedding: int, use_reference: bool = True):
+    direction_net "context" (the default) also gives the AoT branch the
+    current-minus-reference difference as explicit channels and both branches a
+    global context vector; "plain" is the network of the models shipped before
+    it (kept so their checkpoints still load)."""
+
+    def __init__(self, widths: tuple[int, ...], embedding: int, use_reference: bool = True, net: str = "context"):
         super().__init__()
         self.use_reference = use_reference
+        self.with_difference = net == "context" and use_reference
+        context = net == "context"
         self.norm1 = Normalize()
         self.norm2 = Normalize(2 if use_reference else 1)
-        self.dist = UNet(CHANNELS, widths, embedding)
-        self.aot = UNet(CHANNELS * (2 if use_reference else 1), widths, embedding)
+        self.dist = UNet(CHANNELS, widths, embedding, context)
+        aot_in = CHANNELS * (2 if use_reference else 1) + (DIFF_CHANNELS if self.with_difference else 0)
+        self.aot = UNet(aot_in, widths, embedding, context)
 
     def forward(self, observation, reference, pixel):
         cur = observation.permute(0, 3, 1, 2)
         dist_in = self.norm1(cur)
         if self.use_reference:
-            aot_in = self.norm2(torch.cat([cur, reference.permute(0, 3, 1, 2)], dim=1))
+            ref = reference.permute(0, 3, 1, 2)
+            aot_in = self.norm2(torch.cat([cur, ref], dim=1))
+            if self.with_difference:
+                aot_in = torch.cat([aot_in, difference(cur, ref)], dim=1)
         else:
             aot_in = self.norm2(cur) + 0.0 * reference.sum()
         return features_at(self.dist(dist_in), pixel), features_at(self.aot(aot_in), pixel)
@@ -111,9 +141,15 @@ class DirectionEncoder(nn.Module):
 class DirectionDecoder(nn.Module):
     """Scores one candidate direction from the cached image embeddings."""
 
-    def __init__(self, embedding: int, action_embedding: int, variant: str = "umpnet"):
+    def __init__(self, embedding: int, action_embedding: int, variant: str = "umpnet", net: str = "context"):
         super().__init__()
         self.variant = variant
+        # "context": each output also gets a term linear in the direction, with
+        # coefficients read from the embedding. An MLP over [embedding, action]
+        # needs many units to approximate such a product, and "does this move
+        # go along or against the part's displacement" is exactly one.
+        self.bilinear_dist = nn.Linear(embedding, 3) if net == "context" else None
+        self.bilinear_aot = nn.Linear(embedding, 3 * 3) if net == "context" else None
         self.action = nn.Sequential(
             nn.Linear(3, action_embedding), nn.ReLU(), nn.Linear(action_embedding, action_embedding)
         )
@@ -129,6 +165,10 @@ class DirectionDecoder(nn.Module):
         a = self.action(direction)
         distance = self.dist_head(torch.cat([dist_embedding, a], dim=1)).squeeze(1)
         aot_logits = self.aot_head(torch.cat([aot_embedding, a], dim=1))
+        if self.bilinear_dist is not None:
+            distance = distance + (self.bilinear_dist(dist_embedding) * direction).sum(dim=1)
+            bil = self.bilinear_aot(aot_embedding).view(-1, 3, 3)
+            aot_logits = aot_logits + (bil * direction[:, None, :]).sum(dim=2)
         return distance, aot_logits
 
     def inverse(self, dist_embedding, aot_embedding):
@@ -146,8 +186,10 @@ class UMPNet(nn.Module):
     def __init__(self, cfg):
         super().__init__()
         self.position = PositionNet(tuple(cfg.position_widths))
-        self.encoder = DirectionEncoder(tuple(cfg.direction_widths), cfg.embedding, uses_reference(cfg.variant))
-        self.decoder = DirectionDecoder(cfg.embedding, cfg.action_embedding, cfg.variant)
+        self.encoder = DirectionEncoder(
+            tuple(cfg.direction_widths), cfg.embedding, uses_reference(cfg.variant), cfg.direction_net
+        )
+        self.decoder = DirectionDecoder(cfg.embedding, cfg.action_embedding, cfg.variant, cfg.direction_net)
 
     def direction(self, observation, reference, pixel, direction):
         de, ae = self.encoder(observation, reference, pixel)

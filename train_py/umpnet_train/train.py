@@ -25,7 +25,7 @@ import umpnet
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
-from .config import Config, make_config
+from .config import Config, config_from_checkpoint, make_config
 from .export import export_model
 from .models import UMPNet
 from .replay import Replay
@@ -233,6 +233,11 @@ def parse_args(argv=None):
     p.add_argument("--device", help="auto, cpu or cuda")
     p.add_argument("--direction-widths", help="DirectionNet U-Net widths per level, e.g. 8,16,32,64")
     p.add_argument(
+        "--direction-net",
+        choices=["context", "plain"],
+        help="context (default): difference channels, global context and bilinear heads; plain: the earlier network",
+    )
+    p.add_argument(
         "--save-replay",
         action="store_const",
         const=True,
@@ -251,6 +256,7 @@ def parse_args(argv=None):
         device=a.device,
         save_replay=a.save_replay,
         direction_widths=_widths(p, a.direction_widths),
+        direction_net=a.direction_net,
     )
     return cfg, a
 
@@ -296,7 +302,15 @@ def main(argv=None) -> int:
             print(f"error: --resume: {ckpt_path} does not exist", file=sys.stderr)
             return 2
         ck = torch.load(ckpt_path, map_location=DEVICE, weights_only=False)
-        if ck["config"] != dataclasses.asdict(cfg):
+        saved = config_from_checkpoint(ck["config"])
+        if saved.direction_net != cfg.direction_net:
+            print(
+                f"error: --resume: {ckpt_path} holds a {saved.direction_net!r} direction network; "
+                f"add --direction-net {saved.direction_net}",
+                file=sys.stderr,
+            )
+            return 2
+        if dataclasses.asdict(saved) != dataclasses.asdict(cfg):
             print("warning: resuming with a configuration different from the checkpoint's", file=sys.stderr)
         model.load_state_dict(ck["model"])
         opt.load_state_dict(ck["optimizer"])
