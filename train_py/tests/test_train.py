@@ -186,3 +186,46 @@ def test_replay_buffer_round_trips_through_resume(tmp_path, capsys):
     assert np.array_equal(grown.dir_images[:n], saved.dir_images[:n])  # the old samples survived the resume
     with pytest.raises(ValueError, match="expected"):
         Replay(256, (24, 32, 10)).load(out / "replay.npz")
+
+
+def test_context_network_sees_the_whole_image_and_the_difference():
+    import torch
+    from umpnet_train.models import UMPNet, difference
+
+    cur = torch.zeros(1, 96, 128, 10).permute(0, 3, 1, 2)
+    ref = cur.clone()
+    ref[:, 0] -= 0.05  # the point moved 5 cm along +x since the reference
+    d = difference(cur, ref)
+    assert torch.allclose(d[:, 0], torch.full_like(d[:, 0], 0.5)) and d[:, 1:].abs().max() == 0
+
+    torch.manual_seed(0)
+    obs = torch.randn(1, 96, 128, 10)
+    far = obs.clone()
+    far[0, 90:, 120:] += 1.0  # change only a far corner
+    pixel = torch.tensor([[0, 0]])
+    changed = {}
+    for net in ["plain", "context"]:
+        model = UMPNet(make_config("cpu-small", direction_net=net)).eval()
+        with torch.no_grad():
+            a = model.encoder(obs, obs, pixel)[1]
+            b = model.encoder(far, obs, pixel)[1]
+        changed[net] = float((a - b).abs().max())
+    # A 3-level U-Net cannot see 90 pixels away; the global context can.
+    assert changed["plain"] == 0.0 and changed["context"] > 0.0
+
+
+def test_checkpoints_from_before_the_context_network_still_export(tmp_path, capsys):
+    import torch
+
+    out = tmp_path / "run"
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "1", "--direction-net", "plain"]) == 0
+    ck = torch.load(out / "checkpoint.pt", weights_only=False)
+    del ck["config"]["direction_net"]  # as written by earlier versions
+    torch.save(ck, out / "checkpoint.pt")
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "2", "--resume"]) == 2
+    assert "add --direction-net plain" in capsys.readouterr().err
+    from umpnet_train import export
+
+    assert export.main([str(out / "checkpoint.pt"), str(tmp_path / "pkg")]) == 0
+    meta = json.loads((tmp_path / "pkg" / "model.json").read_text())
+    assert meta["config"]["direction_net"] == "plain"
