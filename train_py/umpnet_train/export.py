@@ -67,7 +67,8 @@ class DecoderExport(nn.Module):
             return distance + 0.0 * aot_embedding.sum(dim=1)
         if self.variant == "where2act":
             return torch.sigmoid(distance) + 0.0 * aot_embedding.sum(dim=1)
-        return distance, torch.softmax(logits, dim=1)
+        # A joint change is never negative; the regression can undershoot zero.
+        return distance.clamp(min=0.0), torch.softmax(logits, dim=1)
 
 
 def decoder_outputs(variant: str) -> list[str]:
