@@ -190,12 +190,12 @@ def test_replay_buffer_round_trips_through_resume(tmp_path, capsys):
 
 def test_context_network_sees_the_whole_image_and_the_difference():
     import torch
-    from umpnet_train.models import UMPNet, difference
+    from umpnet_train.models import Difference, UMPNet
 
     cur = torch.zeros(1, 96, 128, 10).permute(0, 3, 1, 2)
     ref = cur.clone()
     ref[:, 0] -= 0.05  # the point moved 5 cm along +x since the reference
-    d = difference(cur, ref)
+    d = Difference()(cur, ref)
     assert torch.allclose(d[:, 0], torch.full_like(d[:, 0], 0.5)) and d[:, 1:].abs().max() == 0
 
     torch.manual_seed(0)

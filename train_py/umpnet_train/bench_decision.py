@@ -23,9 +23,7 @@ from .models import OBS_MEAN, UMPNet
 
 def torch_model(package: Path) -> tuple[UMPNet, Config]:
     meta = json.loads((package / "model.json").read_text())
-    cfg = config_from_checkpoint(
-        {k: tuple(v) if isinstance(v, list) and k.endswith("widths") else v for k, v in meta["config"].items()}
-    )
+    cfg = config_from_checkpoint(meta["config"])
     return UMPNet(cfg).eval(), cfg
 
 

@@ -109,5 +109,8 @@ def make_config(preset: str = "paper", **overrides) -> Config:
 
 
 def config_from_checkpoint(saved: dict) -> Config:
-    """Checkpoints written before `direction_net` existed used the plain network."""
-    return Config(**{"direction_net": "plain", **saved})
+    """The Config a checkpoint or a package's model.json recorded. JSON turns
+    tuples into lists; checkpoints written before `direction_net` existed used
+    the plain network."""
+    values = {k: tuple(v) if isinstance(v, list) and k.endswith("widths") else v for k, v in saved.items()}
+    return Config(**{"direction_net": "plain", **values})

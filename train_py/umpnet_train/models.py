@@ -99,10 +99,17 @@ DIFF_SCALE = [0.1, 0.1, 0.1, 1.0, 1.0, 1.0, 0.1]
 DIFF_CHANNELS = len(DIFF_SCALE)
 
 
-def difference(cur: torch.Tensor, ref: torch.Tensor) -> torch.Tensor:
+class Difference(nn.Module):
     """N x 7 x H x W: how each pixel's point, normal and depth changed since the reference."""
-    d = torch.cat([cur[:, 0:3] - ref[:, 0:3], cur[:, 6:9] - ref[:, 6:9], cur[:, 9:10] - ref[:, 9:10]], dim=1)
-    return d / torch.tensor(DIFF_SCALE, device=d.device).view(1, -1, 1, 1)
+
+    def __init__(self):
+        super().__init__()
+        # Not persistent: a constant, and checkpoints stay loadable whatever its value.
+        self.register_buffer("scale", torch.tensor(DIFF_SCALE).view(1, -1, 1, 1), persistent=False)
+
+    def forward(self, cur: torch.Tensor, ref: torch.Tensor) -> torch.Tensor:
+        d = torch.cat([cur[:, 0:3] - ref[:, 0:3], cur[:, 6:9] - ref[:, 6:9], cur[:, 9:10] - ref[:, 9:10]], dim=1)
+        return d / self.scale
 
 
 class DirectionEncoder(nn.Module):
@@ -117,12 +124,12 @@ class DirectionEncoder(nn.Module):
     def __init__(self, widths: tuple[int, ...], embedding: int, use_reference: bool = True, net: str = "context"):
         super().__init__()
         self.use_reference = use_reference
-        self.with_difference = net == "context" and use_reference
+        self.difference = Difference() if net == "context" and use_reference else None
         context = net == "context"
         self.norm1 = Normalize()
         self.norm2 = Normalize(2 if use_reference else 1)
         self.dist = UNet(CHANNELS, widths, embedding, context)
-        aot_in = CHANNELS * (2 if use_reference else 1) + (DIFF_CHANNELS if self.with_difference else 0)
+        aot_in = CHANNELS * (2 if use_reference else 1) + (0 if self.difference is None else DIFF_CHANNELS)
         self.aot = UNet(aot_in, widths, embedding, context)
 
     def forward(self, observation, reference, pixel):
@@ -131,8 +138,8 @@ class DirectionEncoder(nn.Module):
         if self.use_reference:
             ref = reference.permute(0, 3, 1, 2)
             aot_in = self.norm2(torch.cat([cur, ref], dim=1))
-            if self.with_difference:
-                aot_in = torch.cat([aot_in, difference(cur, ref)], dim=1)
+            if self.difference is not None:
+                aot_in = torch.cat([aot_in, self.difference(cur, ref)], dim=1)
         else:
             aot_in = self.norm2(cur) + 0.0 * reference.sum()
         return features_at(self.dist(dist_in), pixel), features_at(self.aot(aot_in), pixel)
