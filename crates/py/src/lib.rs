@@ -1,4 +1,5 @@
-//! Python bindings: `umpnet.Env`, `umpnet.VecEnv`, `umpnet.Policy`.
+//! Python bindings: `umpnet.Env`, `umpnet.VecEnv`, `umpnet.Policy`,
+//! `umpnet.Articulation` (physics only, in physics.rs).
 //! Errors become ValueError (bad input) or RuntimeError (anything else);
 //! no Rust panic crosses into Python.
 use numpy::{
@@ -698,9 +699,12 @@ fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
         .unwrap_or_else(|_| ndarray::Array3::zeros((s[1], s[2], s[3])))
 }
 
+mod physics;
+
 #[pymodule]
 fn _umpnet(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Env>()?;
+    m.add_class::<physics::Articulation>()?;
     m.add_class::<VecEnv>()?;
     m.add_class::<Policy>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

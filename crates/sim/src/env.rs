@@ -70,7 +70,7 @@ impl SimEnv {
         let mut art = Articulation::new(
             model.clone(),
             scene.world_from_base(),
-            PhysicsConfig::default(),
+            PhysicsConfig::with_profile(scene.physics),
         );
         art.set_joint_positions(&scene.joints)?;
         renderer.load(&render_meshes(&model))?;
@@ -101,7 +101,7 @@ impl SimEnv {
         self.art = Articulation::new(
             self.model.clone(),
             scene.world_from_base(),
-            PhysicsConfig::default(),
+            PhysicsConfig::with_profile(scene.physics),
         );
         self.art.set_joint_positions(&scene.joints)?;
         self.scene = scene;
@@ -167,7 +167,7 @@ impl SimEnv {
         let mut shadow = Articulation::new(
             self.model.clone(),
             self.scene.world_from_base(),
-            PhysicsConfig::default(),
+            PhysicsConfig::with_profile(self.scene.physics),
         );
         shadow.set_joint_positions(joints)?;
         let mut t: Vec<Mat4> = (0..self.model.links.len())

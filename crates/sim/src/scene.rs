@@ -3,6 +3,7 @@
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Quat, Vec3};
 use crate::objects::{self, Category};
+use crate::physics::PhysicsProfile;
 use crate::urdf::{ObjectModel, load_urdf};
 use rand::Rng;
 use std::path::PathBuf;
@@ -72,6 +73,9 @@ pub struct Scene {
     /// Initial joint values, one per model joint (fixed joints 0).
     pub joints: Vec<f32>,
     pub goal: Option<GoalSpec>,
+    /// The physics the scene runs under (absent in older scene files: `reference`).
+    #[serde(default)]
+    pub physics: PhysicsProfile,
 }
 
 /// Goal scenes put the initial state at most this many δ from the goal, so
@@ -228,5 +232,6 @@ pub fn sample_scene(
         base_yaw,
         joints,
         goal,
+        physics: PhysicsProfile::default(),
     })
 }

@@ -75,6 +75,37 @@ pub struct ObjectModel {
 }
 
 impl ObjectModel {
+    /// The object uniformly scaled by `scale`, as PyBullet's `globalScaling`
+    /// does: geometry, joint origins, centres of mass and prismatic limits
+    /// scale; masses keep their value and inertias scale with its square.
+    pub fn scaled(mut self, scale: f32) -> Result<Self> {
+        if !(scale.is_finite() && scale > 0.0 && scale <= 1000.0) {
+            return Err(SimError::InvalidScene(format!(
+                "object scale must be a number in (0, 1000], got {scale}"
+            )));
+        }
+        if scale == 1.0 {
+            return Ok(self);
+        }
+        for link in &mut self.links {
+            for v in &mut link.visuals {
+                for p in &mut v.mesh_in_link.positions {
+                    *p *= scale;
+                }
+            }
+            link.com_in_link *= scale;
+            link.inertia_in_link *= scale * scale;
+        }
+        for joint in &mut self.joints {
+            joint.parent_from_joint.translation *= scale;
+            if joint.kind.is_prismatic() {
+                joint.lower *= scale;
+                joint.upper *= scale;
+            }
+        }
+        Ok(self)
+    }
+
     pub fn movable_joints(&self) -> impl Iterator<Item = (usize, &JointModel)> {
         self.joints
             .iter()
@@ -374,8 +405,9 @@ fn build_model(
             let r = Mat3::from_quat(frame.rotation);
             (m, frame.translation, r * local * r.transpose(), false)
         } else {
-            // PartNet-Mobility links carry no <inertial>: mass 1 and the inertia
-            // of a solid box filling the collision (else visual) bounds.
+            // PartNet-Mobility links carry no <inertial>. As PyBullet does: mass 1,
+            // the centre of mass at the link origin, and the inertia of a solid
+            // box the size of the collision (else visual) bounds.
             let mut shape = TriMesh::default();
             for c in &l.collision {
                 shape.append(
@@ -398,7 +430,7 @@ fn build_model(
                 s.x * s.x + s.z * s.z,
                 s.x * s.x + s.y * s.y,
             ) * (m / 12.0);
-            (m, (lo + hi) * 0.5, Mat3::from_diagonal(d), true)
+            (m, Vec3::ZERO, Mat3::from_diagonal(d), true)
         };
         links.push(LinkModel {
             name: l.name.clone(),

@@ -4,7 +4,7 @@ use std::sync::Arc;
 use umpnet_sim::env::{DELTA, labels};
 use umpnet_sim::math::{Pose3, Quat, Vec3};
 use umpnet_sim::objects::{Category, generate};
-use umpnet_sim::physics::{Articulation, PhysicsConfig};
+use umpnet_sim::physics::{Articulation, PhysicsConfig, PhysicsProfile};
 use umpnet_sim::urdf::{JointKind, ObjectModel};
 
 fn model(c: Category, i: u32) -> Arc<ObjectModel> {
@@ -15,7 +15,7 @@ fn articulation(m: &Arc<ObjectModel>, yaw: f32) -> Articulation {
     Articulation::new(
         m.clone(),
         Pose3::from_parts(Vec3::new(0.0, -0.5, 0.0), Quat::from_rotation_z(yaw)),
-        PhysicsConfig::default(),
+        PhysicsConfig::with_profile(PhysicsProfile::Ideal),
     )
 }
 

@@ -4,9 +4,11 @@
   ``step_direction(xyz)``; observations are dicts of numpy arrays.
 - ``VecEnv``: n environments stepped in parallel Rust threads.
 - ``Policy``: the Rust policy runtime on an exported model package.
+- ``Articulation``: the physics of one URDF object (grasp at a world point,
+  move the gripper), under the ``reference`` or ``ideal`` profile.
 - ``umpnet.gym``: a gymnasium wrapper (optional; needs gymnasium).
 """
 
-from ._umpnet import Env, Policy, VecEnv, __version__
+from ._umpnet import Articulation, Env, Policy, VecEnv, __version__
 
-__all__ = ["Env", "Policy", "VecEnv", "__version__"]
+__all__ = ["Articulation", "Env", "Policy", "VecEnv", "__version__"]

@@ -1,56 +1,12 @@
-//! The articulated object in rapier3d, the suction gripper and the 0.18 m
-//! action primitive. No contacts anywhere (the reference protocol): only
-//! articulated dynamics, joint limits, the suction joint and the gripper drive.
+//! The `ideal` profile: the articulated object as a rapier3d multibody, a
+//! suction gripper on a stiff drive that follows the commanded line as far as
+//! the joint's path allows (the ideal projection onto that path). No contacts.
+use super::{ActionOutcome, PhysicsConfig};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3, rotation_x_to};
-use crate::mesh::TriMesh;
 use crate::urdf::{JointKind, ObjectModel};
 use rapier3d::prelude::*;
 use std::sync::Arc;
-
-/// Physical constants of the protocol; the defaults mirror the reference code.
-#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
-pub struct PhysicsConfig {
-    pub dt: f32,
-    pub substeps: usize,
-    /// Force limit of the gripper drive (reference: 1500 N).
-    pub gripper_max_force: f32,
-    /// Force above which the suction lets go (reference: 2000 N).
-    pub suction_max_force: f32,
-    /// Length of one direction action.
-    pub action_length: f32,
-    /// Speed of the drive's set-point along the action.
-    pub action_speed: f32,
-    /// Joint damping used when the file gives less.
-    pub min_joint_damping: f32,
-    /// Dry friction of every joint: the reference's small velocity-motor brake.
-    pub joint_friction: f32,
-}
-
-impl Default for PhysicsConfig {
-    fn default() -> Self {
-        Self {
-            dt: 1.0 / 60.0,
-            substeps: 4,
-            gripper_max_force: 1500.0,
-            suction_max_force: 2000.0,
-            action_length: 0.18,
-            action_speed: 0.6,
-            min_joint_damping: 2.0,
-            joint_friction: 0.5,
-        }
-    }
-}
-
-/// What one direction action did to the grasped joint.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct ActionOutcome {
-    pub joint_before: f32,
-    pub joint_after: f32,
-    pub gripper_moved: f32,
-    pub suction_lost: bool,
-    pub steps: usize,
-}
 
 struct Gripper {
     body: RigidBodyHandle,
@@ -60,10 +16,9 @@ struct Gripper {
 }
 
 /// One articulated object (fixed base) plus the gripper, in its own rapier world.
-pub struct Articulation {
+pub(crate) struct IdealArticulation {
     model: Arc<ObjectModel>,
     config: PhysicsConfig,
-    world_from_base: Pose3,
     bodies: RigidBodySet,
     colliders: ColliderSet,
     impulse_joints: ImpulseJointSet,
@@ -80,8 +35,12 @@ pub struct Articulation {
     gripper: Option<Gripper>,
 }
 
-impl Articulation {
-    pub fn new(model: Arc<ObjectModel>, world_from_base: Pose3, config: PhysicsConfig) -> Self {
+impl IdealArticulation {
+    pub(crate) fn new(
+        model: Arc<ObjectModel>,
+        world_from_base: Pose3,
+        config: PhysicsConfig,
+    ) -> Self {
         let mut bodies = RigidBodySet::new();
         let mut multibody_joints = MultibodyJointSet::new();
         let mut link_bodies = vec![RigidBodyHandle::invalid(); model.links.len()];
@@ -141,7 +100,6 @@ impl Articulation {
         let mut art = Self {
             model,
             config,
-            world_from_base,
             bodies,
             colliders: ColliderSet::new(),
             impulse_joints: ImpulseJointSet::new(),
@@ -201,16 +159,6 @@ impl Articulation {
         }
     }
 
-    pub fn model(&self) -> &Arc<ObjectModel> {
-        &self.model
-    }
-    pub fn config(&self) -> &PhysicsConfig {
-        &self.config
-    }
-    pub fn world_from_base(&self) -> Pose3 {
-        self.world_from_base
-    }
-
     /// (multibody, dof index) of a movable joint.
     fn dof_of(&self, joint: usize) -> Option<(MultibodyIndex, usize, usize)> {
         let handle = (*self.joint_handles.get(joint)?)?;
@@ -220,7 +168,7 @@ impl Articulation {
     }
 
     /// Current value of a joint (rad or m); 0 for fixed joints.
-    pub fn joint_position(&self, joint: usize) -> f32 {
+    pub(crate) fn joint_position(&self, joint: usize) -> f32 {
         let Some(kind) = self.model.joints.get(joint).map(|j| j.kind) else {
             return 0.0;
         };
@@ -242,13 +190,7 @@ impl Articulation {
         }
     }
 
-    pub fn joint_positions(&self) -> Vec<f32> {
-        (0..self.model.joints.len())
-            .map(|j| self.joint_position(j))
-            .collect()
-    }
-
-    pub fn joint_velocity(&self, joint: usize) -> f32 {
+    pub(crate) fn joint_velocity(&self, joint: usize) -> f32 {
         let Some((idx, _, dof)) = self.dof_of(joint) else {
             return 0.0;
         };
@@ -263,21 +205,7 @@ impl Articulation {
 
     /// Sets every joint to the given values (clamped into its limits), zeroes
     /// velocities and lets go of anything the gripper holds.
-    pub fn set_joint_positions(&mut self, values: &[f32]) -> Result<()> {
-        if values.len() != self.model.joints.len() {
-            return Err(SimError::InvalidScene(format!(
-                "expected {} joint values for {}, got {}",
-                self.model.joints.len(),
-                self.model.name,
-                values.len()
-            )));
-        }
-        if let Some(bad) = values.iter().position(|v| !v.is_finite()) {
-            return Err(SimError::InvalidScene(format!(
-                "joint value {bad} is not finite: {}",
-                values[bad]
-            )));
-        }
+    pub(crate) fn set_joint_positions(&mut self, values: &[f32]) {
         self.release();
         for (j, &v) in values.iter().enumerate() {
             let joint = &self.model.joints[j];
@@ -296,7 +224,6 @@ impl Articulation {
         }
         self.zero_velocities();
         self.refresh_kinematics();
-        Ok(())
     }
 
     fn zero_velocities(&mut self) {
@@ -317,46 +244,19 @@ impl Articulation {
         }
     }
 
-    pub fn world_from_link(&self, link: usize) -> Pose3 {
+    pub(crate) fn world_from_link(&self, link: usize) -> Pose3 {
         self.bodies
             .get(self.link_bodies[link])
             .map(|b| *b.position())
             .unwrap_or(Pose3::IDENTITY)
     }
 
-    /// World-frame pose of a joint's frame (its axis is `axis_in_joint` there).
-    pub fn world_from_joint(&self, joint: usize) -> Pose3 {
-        let j = &self.model.joints[joint];
-        self.world_from_link(j.parent) * j.parent_from_joint
-    }
-
-    /// Joint axis (unit) and a point on it, in world frame.
-    pub fn joint_axis_in_world(&self, joint: usize) -> (Vec3, Vec3) {
-        let pose = self.world_from_joint(joint);
-        (
-            pose.rotation * self.model.joints[joint].axis_in_joint,
-            pose.translation,
-        )
-    }
-
-    /// The triangles of each link in world frame (with the visual colour).
-    pub fn world_meshes(&self) -> Vec<(usize, TriMesh, [f32; 3])> {
-        let mut out = Vec::new();
-        for (l, link) in self.model.links.iter().enumerate() {
-            let pose = self.world_from_link(l);
-            for v in &link.visuals {
-                out.push((l, v.mesh_in_link.transformed(&pose), v.color));
-            }
-        }
-        out
-    }
-
-    pub fn gripper_position(&self) -> Option<Vec3> {
+    pub(crate) fn gripper_position(&self) -> Option<Vec3> {
         let g = self.gripper.as_ref()?;
         self.bodies.get(g.body).map(|b| b.translation())
     }
 
-    pub fn grasped_link(&self) -> Option<usize> {
+    pub(crate) fn grasped_link(&self) -> Option<usize> {
         self.gripper
             .as_ref()
             .filter(|g| g.suction.is_some())
@@ -364,12 +264,7 @@ impl Articulation {
     }
 
     /// Attaches the suction gripper at `point_in_world` on `link`.
-    pub fn attach(&mut self, point_in_world: Vec3, link: usize) -> Result<()> {
-        if link >= self.model.links.len() || !point_in_world.is_finite() {
-            return Err(SimError::InvalidAction(format!(
-                "cannot attach to link {link} at {point_in_world}"
-            )));
-        }
+    pub(crate) fn attach(&mut self, point_in_world: Vec3, link: usize) -> Result<()> {
         self.release();
         let cfg = &self.config;
         let target = self
@@ -413,7 +308,7 @@ impl Articulation {
     }
 
     /// Removes the gripper from the world.
-    pub fn release(&mut self) {
+    pub(crate) fn release(&mut self) {
         if let Some(g) = self.gripper.take() {
             for h in [g.body, g.target] {
                 self.bodies.remove(
@@ -449,7 +344,7 @@ impl Articulation {
 
     /// Moves the gripper `action_length` along `direction` (unit, world frame),
     /// force-limited, until it stops moving. `joint` is the joint whose value is reported.
-    pub fn move_gripper(&mut self, direction: Vec3, joint: usize) -> Result<ActionOutcome> {
+    pub(crate) fn move_gripper(&mut self, direction: Vec3, joint: usize) -> Result<ActionOutcome> {
         let Some(g) = self.gripper.as_ref() else {
             return Err(SimError::InvalidAction(
                 "no grasp: a position action must come first".into(),

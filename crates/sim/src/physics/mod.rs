@@ -1,0 +1,289 @@
+//! The articulated object, the suction gripper and the 0.18 m action
+//! primitive, in one of two physics profiles:
+//!
+//! - [`PhysicsProfile::Reference`] (the default) reproduces the paper's
+//!   released simulator: a stiff, force-limited 3-axis mount driven along a
+//!   straight line, a force-limited point-to-point suction, and PyBullet's
+//!   default velocity motor left on every object joint (a dry brake). Its
+//!   fidelity is checked against PyBullet by `tests/reference/`.
+//! - [`PhysicsProfile::Ideal`] is a rapier3d multibody whose gripper follows
+//!   the commanded line as far as the joint's path allows: every direction
+//!   with a component along the path moves the part the full 0.18 m.
+//!
+//! No contacts in either (the reference protocol): only articulated dynamics,
+//! joint limits, the suction joint and the gripper drive.
+mod ideal;
+mod kinematics;
+mod reference;
+
+use crate::error::Result;
+use crate::math::{Pose3, Vec3};
+use crate::mesh::TriMesh;
+use crate::urdf::ObjectModel;
+use std::sync::Arc;
+
+pub use reference::ReferenceParams;
+
+/// Which simulator stands behind the action primitive.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum PhysicsProfile {
+    /// The paper's PyBullet setup (see the module docs).
+    #[default]
+    Reference,
+    /// The ideal projection of every pull onto the joint's path (rapier3d).
+    Ideal,
+}
+
+impl PhysicsProfile {
+    pub const ALL: &'static [PhysicsProfile] = &[PhysicsProfile::Reference, PhysicsProfile::Ideal];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PhysicsProfile::Reference => "reference",
+            PhysicsProfile::Ideal => "ideal",
+        }
+    }
+}
+
+impl std::fmt::Display for PhysicsProfile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for PhysicsProfile {
+    type Err = crate::SimError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "reference" => Ok(PhysicsProfile::Reference),
+            "ideal" => Ok(PhysicsProfile::Ideal),
+            _ => Err(crate::SimError::Other(format!(
+                "unknown physics profile `{s}`; expected reference or ideal"
+            ))),
+        }
+    }
+}
+
+/// Physical constants of the protocol; the defaults mirror the reference code.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct PhysicsConfig {
+    pub profile: PhysicsProfile,
+    /// Force limit of the gripper drive, per mount axis (reference: 1500 N).
+    pub gripper_max_force: f32,
+    /// Force limit of the suction (reference: 2000 N, per axis of its constraint).
+    pub suction_max_force: f32,
+    /// Length of one direction action.
+    pub action_length: f32,
+    /// `ideal` only: rapier step and solver iterations.
+    pub dt: f32,
+    pub substeps: usize,
+    /// `ideal` only: speed of the drive's set-point along the action.
+    pub action_speed: f32,
+    /// `ideal` only: joint damping used when the file gives less.
+    pub min_joint_damping: f32,
+    /// `ideal` only: dry friction of every joint.
+    pub joint_friction: f32,
+    /// `reference` only: the mount, the brake and the solver.
+    pub reference: ReferenceParams,
+}
+
+impl Default for PhysicsConfig {
+    fn default() -> Self {
+        Self {
+            profile: PhysicsProfile::Reference,
+            gripper_max_force: 1500.0,
+            suction_max_force: 2000.0,
+            action_length: 0.18,
+            dt: 1.0 / 60.0,
+            substeps: 4,
+            action_speed: 0.6,
+            min_joint_damping: 2.0,
+            joint_friction: 0.5,
+            reference: ReferenceParams::default(),
+        }
+    }
+}
+
+impl PhysicsConfig {
+    pub fn with_profile(profile: PhysicsProfile) -> Self {
+        Self {
+            profile,
+            ..Self::default()
+        }
+    }
+}
+
+/// What one direction action did to the grasped joint.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ActionOutcome {
+    pub joint_before: f32,
+    pub joint_after: f32,
+    pub gripper_moved: f32,
+    /// `ideal` only: the suction let go because its force passed the limit.
+    /// The reference suction never lets go: it slips, holding at most its limit.
+    pub suction_lost: bool,
+    /// Simulation steps taken (reference: steps of 1/240 s).
+    pub steps: usize,
+}
+
+enum Backend {
+    Ideal(Box<ideal::IdealArticulation>),
+    Reference(Box<reference::ReferenceArticulation>),
+}
+
+/// One articulated object (fixed base) plus the gripper.
+pub struct Articulation {
+    model: Arc<ObjectModel>,
+    config: PhysicsConfig,
+    world_from_base: Pose3,
+    backend: Backend,
+}
+
+macro_rules! dispatch {
+    ($self:ident, $b:ident => $e:expr) => {
+        match &$self.backend {
+            Backend::Ideal($b) => $e,
+            Backend::Reference($b) => $e,
+        }
+    };
+    (mut $self:ident, $b:ident => $e:expr) => {
+        match &mut $self.backend {
+            Backend::Ideal($b) => $e,
+            Backend::Reference($b) => $e,
+        }
+    };
+}
+
+impl Articulation {
+    pub fn new(model: Arc<ObjectModel>, world_from_base: Pose3, config: PhysicsConfig) -> Self {
+        let backend = match config.profile {
+            PhysicsProfile::Ideal => Backend::Ideal(Box::new(ideal::IdealArticulation::new(
+                model.clone(),
+                world_from_base,
+                config.clone(),
+            ))),
+            PhysicsProfile::Reference => Backend::Reference(Box::new(
+                reference::ReferenceArticulation::new(model.clone(), world_from_base, &config),
+            )),
+        };
+        Self {
+            model,
+            config,
+            world_from_base,
+            backend,
+        }
+    }
+
+    pub fn model(&self) -> &Arc<ObjectModel> {
+        &self.model
+    }
+    pub fn config(&self) -> &PhysicsConfig {
+        &self.config
+    }
+    pub fn profile(&self) -> PhysicsProfile {
+        self.config.profile
+    }
+    pub fn world_from_base(&self) -> Pose3 {
+        self.world_from_base
+    }
+
+    /// Current value of a joint (rad or m); 0 for fixed joints.
+    pub fn joint_position(&self, joint: usize) -> f32 {
+        dispatch!(self, b => b.joint_position(joint))
+    }
+
+    pub fn joint_positions(&self) -> Vec<f32> {
+        (0..self.model.joints.len())
+            .map(|j| self.joint_position(j))
+            .collect()
+    }
+
+    pub fn joint_velocity(&self, joint: usize) -> f32 {
+        dispatch!(self, b => b.joint_velocity(joint))
+    }
+
+    /// Sets every joint to the given values (clamped into its limits), zeroes
+    /// velocities and lets go of anything the gripper holds.
+    pub fn set_joint_positions(&mut self, values: &[f32]) -> Result<()> {
+        if values.len() != self.model.joints.len() {
+            return Err(crate::SimError::InvalidScene(format!(
+                "expected {} joint values for {}, got {}",
+                self.model.joints.len(),
+                self.model.name,
+                values.len()
+            )));
+        }
+        if let Some(bad) = values.iter().position(|v| !v.is_finite()) {
+            return Err(crate::SimError::InvalidScene(format!(
+                "joint value {bad} is not finite: {}",
+                values[bad]
+            )));
+        }
+        dispatch!(mut self, b => b.set_joint_positions(values));
+        Ok(())
+    }
+
+    pub fn world_from_link(&self, link: usize) -> Pose3 {
+        dispatch!(self, b => b.world_from_link(link))
+    }
+
+    /// World-frame pose of a joint's frame (its axis is `axis_in_joint` there).
+    pub fn world_from_joint(&self, joint: usize) -> Pose3 {
+        let j = &self.model.joints[joint];
+        self.world_from_link(j.parent) * j.parent_from_joint
+    }
+
+    /// Joint axis (unit) and a point on it, in world frame.
+    pub fn joint_axis_in_world(&self, joint: usize) -> (Vec3, Vec3) {
+        let pose = self.world_from_joint(joint);
+        (
+            pose.rotation * self.model.joints[joint].axis_in_joint,
+            pose.translation,
+        )
+    }
+
+    /// The triangles of each link in world frame (with the visual colour).
+    pub fn world_meshes(&self) -> Vec<(usize, TriMesh, [f32; 3])> {
+        let mut out = Vec::new();
+        for (l, link) in self.model.links.iter().enumerate() {
+            let pose = self.world_from_link(l);
+            for v in &link.visuals {
+                out.push((l, v.mesh_in_link.transformed(&pose), v.color));
+            }
+        }
+        out
+    }
+
+    /// Where the gripper is (reference: the mount's suction point).
+    pub fn gripper_position(&self) -> Option<Vec3> {
+        dispatch!(self, b => b.gripper_position())
+    }
+
+    pub fn grasped_link(&self) -> Option<usize> {
+        dispatch!(self, b => b.grasped_link())
+    }
+
+    /// Attaches the suction gripper at `point_in_world` on `link`.
+    pub fn attach(&mut self, point_in_world: Vec3, link: usize) -> Result<()> {
+        if link >= self.model.links.len() || !point_in_world.is_finite() {
+            return Err(crate::SimError::InvalidAction(format!(
+                "cannot attach to link {link} at {point_in_world}"
+            )));
+        }
+        dispatch!(mut self, b => b.attach(point_in_world, link))
+    }
+
+    /// Removes the gripper from the world.
+    pub fn release(&mut self) {
+        dispatch!(mut self, b => b.release())
+    }
+
+    /// Moves the gripper `action_length` along `direction` (unit, world frame)
+    /// as the profile defines; `joint` is the joint whose value is reported.
+    pub fn move_gripper(&mut self, direction: Vec3, joint: usize) -> Result<ActionOutcome> {
+        dispatch!(mut self, b => b.move_gripper(direction, joint))
+    }
+}

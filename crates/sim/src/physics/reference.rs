@@ -1,0 +1,578 @@
+//! The `reference` profile: the paper's released simulator (PyBullet,
+//! real-stanford/umpnet `sim.py`) re-derived as a small velocity-level
+//! solver in reduced coordinates, so that it is both faithful and fast.
+//!
+//! What it models, as the reference does (facts in DESIGN.md):
+//! - The gripper is a mount of mass ~100 kg on three world-aligned prismatic
+//!   axes, each a velocity motor whose target is `gain * error / dt`
+//!   (PyBullet's POSITION_CONTROL) with at most 1500 N.
+//! - The suction is a point-to-point constraint between the mount and a point
+//!   fixed on the link, at most 2000 N per world axis: past that it slips,
+//!   it never lets go.
+//! - Every object joint keeps PyBullet's default velocity motor (target 0,
+//!   1 N·s per 1/240 s step): a dry brake of about 240 N or N·m.
+//! - An action drives the mount's target 0.18 m along the direction and steps
+//!   until three steps (counted cumulatively) moved the mount less than
+//!   1e-4 m, or 8 s pass; then a faster drive re-aligns the mount onto the
+//!   suction point.
+//!
+//! How it solves: each update builds the constraint rows (mount motors,
+//! suction, brakes, joint limits) on the grasped link's chain of movable
+//! joints and solves them by projected Gauss-Seidel with box bounds, as
+//! Bullet does; the velocities it converges to are unique, so the answer does
+//! not depend on the row order. Joints off the chain carry no load and keep
+//! still. One update may cover several reference steps (`steps_per_update`):
+//! gains and bounds are rescaled so a free pull follows the same exponential
+//! approach.
+use super::kinematics::{forward_kinematics, joint_motion, movable_chain, moved_links};
+use super::{ActionOutcome, PhysicsConfig};
+use crate::error::{Result, SimError};
+use crate::math::{Pose3, Vec3};
+use crate::urdf::{JointKind, ObjectModel};
+use std::sync::Arc;
+
+/// Constants of the reference simulator (defaults: the paper's code).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct ReferenceParams {
+    /// The reference time step (PyBullet's 1/240 s).
+    pub reference_dt: f32,
+    /// Reference steps covered by one solver update: 1 replays the reference
+    /// step by step; 4 is four times faster and stays within the fidelity
+    /// bounds of the differential suite.
+    pub steps_per_update: usize,
+    /// Projected Gauss-Seidel sweeps per update (PyBullet: 50).
+    pub solver_iterations: usize,
+    /// Mass moved by each mount axis (the reference mount: 100 kg + tip parts).
+    pub mount_mass: f32,
+    /// Position gain of the mount during an action (0.002 per step).
+    pub mount_gain: f32,
+    /// Position gain of the approach and the re-alignment (speed ratio 10).
+    pub realign_gain: f32,
+    /// Impulse of each object joint's default velocity motor per reference step.
+    pub brake_impulse: f32,
+    /// Error reduction of the suction and joint limits per reference step.
+    pub erp: f32,
+    /// A step "did not move" when the mount moved less than this (m).
+    pub still_displacement: f32,
+    /// ... and the drive stops after this many such steps (cumulative).
+    pub still_steps: usize,
+    /// At most this many reference steps per drive (8 s).
+    pub max_steps: usize,
+    /// Where the mount waits before a grasp (its base in the reference).
+    pub mount_home: [f32; 3],
+}
+
+impl Default for ReferenceParams {
+    fn default() -> Self {
+        Self {
+            reference_dt: 1.0 / 240.0,
+            steps_per_update: 4,
+            solver_iterations: 50,
+            mount_mass: 100.5,
+            mount_gain: 0.002,
+            realign_gain: 0.02,
+            brake_impulse: 1.0,
+            erp: 0.2,
+            still_displacement: 1e-4,
+            still_steps: 3,
+            max_steps: 240 * 8,
+            mount_home: [0.0, -2.0, 2.0],
+        }
+    }
+}
+
+struct Suction {
+    link: usize,
+    point_in_link: Vec3,
+    /// Movable joints from the root to `link`: the only ones that carry load.
+    chain: Vec<usize>,
+    /// For each chain joint, the links it moves.
+    moved: Vec<Vec<usize>>,
+}
+
+struct Mount {
+    position: Vec3,
+    velocity: Vec3,
+    suction: Option<Suction>,
+}
+
+/// One constraint row over the chain's joint velocities and the mount velocity.
+#[derive(Clone, Default)]
+struct Row {
+    jacobian: Vec<f64>,
+    /// Inverse mass times the Jacobian: the velocity change per unit impulse.
+    response: Vec<f64>,
+    inv_effective_mass: f64,
+    target: f64,
+    lower: f64,
+    upper: f64,
+    impulse: f64,
+}
+
+pub(crate) struct ReferenceArticulation {
+    model: Arc<ObjectModel>,
+    params: ReferenceParams,
+    gripper_max_force: f32,
+    suction_max_force: f32,
+    action_length: f32,
+    world_from_base: Pose3,
+    q: Vec<f32>,
+    qd: Vec<f32>,
+    world_from_link: Vec<Pose3>,
+    mount: Option<Mount>,
+    rows: Vec<Row>,
+    /// The last update's impulses, row by row: the next update starts from
+    /// them (the rows keep their order while a grasp lasts).
+    warm_start: Vec<f64>,
+}
+
+impl ReferenceArticulation {
+    pub(crate) fn new(
+        model: Arc<ObjectModel>,
+        world_from_base: Pose3,
+        config: &PhysicsConfig,
+    ) -> Self {
+        let n = model.joints.len();
+        let mut art = Self {
+            params: config.reference.clone(),
+            gripper_max_force: config.gripper_max_force,
+            suction_max_force: config.suction_max_force,
+            action_length: config.action_length,
+            world_from_base,
+            q: vec![0.0; n],
+            qd: vec![0.0; n],
+            world_from_link: vec![Pose3::IDENTITY; model.links.len()],
+            mount: None,
+            rows: Vec::new(),
+            warm_start: Vec::new(),
+            model,
+        };
+        art.refresh_kinematics();
+        art
+    }
+
+    fn refresh_kinematics(&mut self) {
+        forward_kinematics(
+            &self.model,
+            self.world_from_base,
+            &self.q,
+            &mut self.world_from_link,
+        );
+    }
+
+    pub(crate) fn joint_position(&self, joint: usize) -> f32 {
+        self.q.get(joint).copied().unwrap_or(0.0)
+    }
+
+    pub(crate) fn joint_velocity(&self, joint: usize) -> f32 {
+        self.qd.get(joint).copied().unwrap_or(0.0)
+    }
+
+    pub(crate) fn set_joint_positions(&mut self, values: &[f32]) {
+        self.release();
+        for (j, joint) in self.model.joints.iter().enumerate() {
+            self.q[j] = if joint.kind.is_movable() {
+                values[j].clamp(joint.lower, joint.upper)
+            } else {
+                0.0
+            };
+        }
+        self.qd.fill(0.0);
+        self.refresh_kinematics();
+    }
+
+    pub(crate) fn world_from_link(&self, link: usize) -> Pose3 {
+        self.world_from_link
+            .get(link)
+            .copied()
+            .unwrap_or(Pose3::IDENTITY)
+    }
+
+    pub(crate) fn gripper_position(&self) -> Option<Vec3> {
+        self.mount.as_ref().map(|m| m.position)
+    }
+
+    pub(crate) fn grasped_link(&self) -> Option<usize> {
+        self.mount
+            .as_ref()
+            .and_then(|m| m.suction.as_ref())
+            .map(|s| s.link)
+    }
+
+    pub(crate) fn release(&mut self) {
+        self.mount = None;
+        self.warm_start.clear();
+    }
+
+    /// The reference's position action: a fresh mount at its home drives to
+    /// the point (nothing attached yet, so it does not touch the object), then
+    /// the suction joins the mount to the point on the link. The drive stops
+    /// a few millimetres short, as the reference's does; the suction pulls
+    /// that gap closed during the first action.
+    pub(crate) fn attach(&mut self, point_in_world: Vec3, link: usize) -> Result<()> {
+        self.warm_start.clear();
+        self.mount = Some(Mount {
+            position: Vec3::from(self.params.mount_home),
+            velocity: Vec3::ZERO,
+            suction: None,
+        });
+        self.drive(point_in_world, self.params.realign_gain);
+        let chain = movable_chain(&self.model, link);
+        let moved = chain.iter().map(|&j| moved_links(&self.model, j)).collect();
+        let point_in_link = self.world_from_link[link].inverse_transform_point(point_in_world);
+        if let Some(m) = self.mount.as_mut() {
+            m.suction = Some(Suction {
+                link,
+                point_in_link,
+                chain,
+                moved,
+            });
+        }
+        Ok(())
+    }
+
+    fn suction_point(&self) -> Option<Vec3> {
+        let s = self.mount.as_ref()?.suction.as_ref()?;
+        Some(self.world_from_link[s.link].transform_point(s.point_in_link))
+    }
+
+    pub(crate) fn move_gripper(&mut self, direction: Vec3, joint: usize) -> Result<ActionOutcome> {
+        let (Some(start_point), Some(start)) = (self.suction_point(), self.gripper_position())
+        else {
+            return Err(SimError::InvalidAction(
+                "no grasp: a position action must come first".into(),
+            ));
+        };
+        let joint_before = self.joint_position(joint);
+        let mut steps = self.drive(
+            start_point + direction * self.action_length,
+            self.params.mount_gain,
+        );
+        if let Some(p) = self.suction_point() {
+            steps += self.drive(p, self.params.realign_gain);
+        }
+        let end = self.gripper_position().unwrap_or(start);
+        Ok(ActionOutcome {
+            joint_before,
+            joint_after: self.joint_position(joint),
+            gripper_moved: (end - start).length(),
+            suction_lost: false,
+            steps,
+        })
+    }
+
+    /// Drives the mount toward `target` until it stops (the reference's
+    /// `_move_to`); returns the reference steps taken.
+    fn drive(&mut self, target: Vec3, gain: f32) -> usize {
+        let p = &self.params;
+        let k = p.steps_per_update.max(1);
+        let h = p.reference_dt * k as f32;
+        // k reference steps of gain g close the same share of a free error.
+        let gain = 1.0 - (1.0 - gain).powi(k as i32);
+        let (max_steps, still_needed, still_disp) =
+            (p.max_steps, p.still_steps, p.still_displacement);
+        let mut still = 0;
+        let mut steps = 0;
+        while steps < max_steps {
+            let Some(before) = self.gripper_position() else {
+                break;
+            };
+            self.update(target, gain, h, k);
+            steps += k;
+            let after = self.gripper_position().unwrap_or(before);
+            if (after - before).length() / (k as f32) < still_disp {
+                still += k;
+                if still >= still_needed {
+                    break;
+                }
+            }
+        }
+        steps
+    }
+
+    /// One solver update of length `h` covering `k` reference steps.
+    fn update(&mut self, target: Vec3, gain: f32, h: f32, k: usize) {
+        let Some(mount) = self.mount.as_ref() else {
+            return;
+        };
+        let desired = (target - mount.position) * (gain / h);
+        let motor_bound = (self.gripper_max_force * h) as f64;
+        let mount_mass = self.params.mount_mass as f64;
+        if mount.suction.is_none() {
+            // The mount alone: three independent force-limited velocity motors.
+            let dv = self.gripper_max_force * h / self.params.mount_mass;
+            let v = mount.velocity;
+            let v = Vec3::new(
+                desired.x.clamp(v.x - dv, v.x + dv),
+                desired.y.clamp(v.y - dv, v.y + dv),
+                desired.z.clamp(v.z - dv, v.z + dv),
+            );
+            if let Some(m) = self.mount.as_mut() {
+                m.velocity = v;
+                m.position += v * h;
+            }
+            return;
+        }
+        let Some(s) = mount.suction.as_ref() else {
+            return;
+        };
+        let n = s.chain.len();
+        let dofs = n + 3;
+        let hk = h as f64;
+        let erp = 1.0 - (1.0 - self.params.erp as f64).powi(k as i32);
+        let point = self.world_from_link[s.link].transform_point(s.point_in_link);
+
+        // Each chain joint's axis and origin in world, and its motion subspace
+        // at a point: v = axis x (p - origin) for a hinge, axis for a slider.
+        let axes: Vec<(JointKind, Vec3, Vec3)> = s
+            .chain
+            .iter()
+            .map(|&j| {
+                let jm = &self.model.joints[j];
+                let pose = self.world_from_link[jm.parent] * jm.parent_from_joint;
+                (jm.kind, pose.rotation * jm.axis_in_joint, pose.translation)
+            })
+            .collect();
+        let linear = |a: usize, at: Vec3| -> Vec3 {
+            let (kind, axis, origin) = axes[a];
+            if kind.is_prismatic() {
+                axis
+            } else {
+                axis.cross(at - origin)
+            }
+        };
+        let angular = |a: usize| -> Vec3 {
+            let (kind, axis, _) = axes[a];
+            if kind.is_prismatic() {
+                Vec3::ZERO
+            } else {
+                axis
+            }
+        };
+
+        // Joint-space mass matrix of the chain; a deeper joint's moved links are
+        // a subset of a shallower one's.
+        let mut mass = vec![0.0f64; n * n];
+        for b in 0..n {
+            for &l in &s.moved[b] {
+                let link = &self.model.links[l];
+                let pose = self.world_from_link[l];
+                let com = pose.transform_point(link.com_in_link);
+                let rot = crate::math::Mat3::from_quat(pose.rotation);
+                let inertia = rot * link.inertia_in_link * rot.transpose();
+                for a in 0..=b {
+                    let (va, vb) = (linear(a, com), linear(b, com));
+                    let (wa, wb) = (angular(a), angular(b));
+                    let m = link.mass * va.dot(vb) + wa.dot(inertia * wb);
+                    mass[a * n + b] += m as f64;
+                    if a != b {
+                        mass[b * n + a] += m as f64;
+                    }
+                }
+            }
+        }
+        for a in 0..n {
+            // Guards a massless chain; far below any real link's inertia.
+            mass[a * n + a] += 1e-9;
+        }
+        let Some(inv_mass) = invert(&mass, n) else {
+            return;
+        };
+        let apply_inverse_mass = |jac: &[f64]| -> Vec<f64> {
+            let mut r = vec![0.0; dofs];
+            for a in 0..n {
+                r[a] = (0..n).map(|b| inv_mass[a * n + b] * jac[b]).sum();
+            }
+            for i in 0..3 {
+                r[n + i] = jac[n + i] / mount_mass;
+            }
+            r
+        };
+
+        let mut rows = std::mem::take(&mut self.rows);
+        rows.clear();
+        let mut push = |jacobian: Vec<f64>, target: f64, lower: f64, upper: f64| {
+            let response = apply_inverse_mass(&jacobian);
+            let d: f64 = jacobian.iter().zip(&response).map(|(a, b)| a * b).sum();
+            if d > 1e-12 {
+                rows.push(Row {
+                    jacobian,
+                    response,
+                    inv_effective_mass: 1.0 / d,
+                    target,
+                    lower,
+                    upper,
+                    impulse: 0.0,
+                });
+            }
+        };
+        let unit = |i: usize| {
+            let mut j = vec![0.0; dofs];
+            j[i] = 1.0;
+            j
+        };
+        // Joint limits: never closer than the gap allows in one update;
+        // pushed back out when past it.
+        for (a, &j) in s.chain.iter().enumerate() {
+            let jm = &self.model.joints[j];
+            if jm.kind == JointKind::Continuous || !jm.lower.is_finite() {
+                continue;
+            }
+            let q = self.q[j] as f64;
+            for (sign, gap) in [(1.0, q - jm.lower as f64), (-1.0, jm.upper as f64 - q)] {
+                let target = if gap > 0.0 {
+                    -gap / hk
+                } else {
+                    -gap * erp / hk
+                };
+                let mut jac = unit(a);
+                jac[a] = sign;
+                push(jac, target, 0.0, f64::INFINITY);
+            }
+        }
+        // The default velocity motor of each chain joint: a dry brake.
+        let brake = (self.params.brake_impulse * k as f32) as f64;
+        for a in 0..n {
+            push(unit(a), 0.0, -brake, brake);
+        }
+        // The suction, per world axis: point velocity minus mount velocity.
+        let suction_bound = (self.suction_max_force * h) as f64;
+        let gap = point - mount.position;
+        for i in 0..3 {
+            let mut jac = vec![0.0; dofs];
+            for (a, ja) in jac.iter_mut().enumerate().take(n) {
+                *ja = linear(a, point)[i] as f64;
+            }
+            jac[n + i] = -1.0;
+            push(
+                jac,
+                -(gap[i] as f64) * erp / hk,
+                -suction_bound,
+                suction_bound,
+            );
+        }
+        // The mount's three velocity motors.
+        for i in 0..3 {
+            push(unit(n + i), desired[i] as f64, -motor_bound, motor_bound);
+        }
+
+        let mut x: Vec<f64> = s
+            .chain
+            .iter()
+            .map(|&j| self.qd[j] as f64)
+            .chain((0..3).map(|i| mount.velocity[i] as f64))
+            .collect();
+        if self.warm_start.len() == rows.len() {
+            for (r, &w) in rows.iter_mut().zip(&self.warm_start) {
+                r.impulse = w.clamp(r.lower, r.upper);
+                for (xi, ri) in x.iter_mut().zip(&r.response) {
+                    *xi += ri * r.impulse;
+                }
+            }
+        }
+        for _ in 0..self.params.solver_iterations.max(1) {
+            let mut largest = 0.0f64;
+            for r in rows.iter_mut() {
+                let jv: f64 = r.jacobian.iter().zip(&x).map(|(a, b)| a * b).sum();
+                let next =
+                    (r.impulse + (r.target - jv) * r.inv_effective_mass).clamp(r.lower, r.upper);
+                let change = next - r.impulse;
+                if change != 0.0 {
+                    r.impulse = next;
+                    for (xi, ri) in x.iter_mut().zip(&r.response) {
+                        *xi += ri * change;
+                    }
+                    largest = largest.max((change * r.inv_effective_mass.recip()).abs());
+                }
+            }
+            // Converged: no row changed any velocity by a measurable amount.
+            if largest < 1e-10 {
+                break;
+            }
+        }
+        self.warm_start.clear();
+        self.warm_start.extend(rows.iter().map(|r| r.impulse));
+        self.rows = rows;
+
+        let chain = s.chain.clone();
+        for (a, &j) in chain.iter().enumerate() {
+            self.qd[j] = x[a] as f32;
+            self.q[j] += x[a] as f32 * h;
+        }
+        if let Some(m) = self.mount.as_mut() {
+            m.velocity = Vec3::new(x[n] as f32, x[n + 1] as f32, x[n + 2] as f32);
+            m.position += m.velocity * h;
+        }
+        self.refresh_chain(&chain);
+    }
+
+    /// Re-poses the links below the first chain joint (the rest did not move).
+    fn refresh_chain(&mut self, chain: &[usize]) {
+        if chain.is_empty() {
+            return;
+        }
+        for (j, joint) in self.model.joints.iter().enumerate() {
+            if j < chain[0] {
+                continue;
+            }
+            self.world_from_link[joint.child] = self.world_from_link[joint.parent]
+                * joint.parent_from_joint
+                * joint_motion(joint.kind, joint.axis_in_joint, self.q[j]);
+        }
+    }
+}
+
+/// Inverse of a small symmetric positive definite matrix (Gauss-Jordan with
+/// partial pivoting); None when singular.
+fn invert(m: &[f64], n: usize) -> Option<Vec<f64>> {
+    let mut a = m.to_vec();
+    let mut inv = vec![0.0; n * n];
+    for i in 0..n {
+        inv[i * n + i] = 1.0;
+    }
+    for c in 0..n {
+        let p = (c..n).max_by(|&r, &s| a[r * n + c].abs().total_cmp(&a[s * n + c].abs()))?;
+        if a[p * n + c].abs() < 1e-15 {
+            return None;
+        }
+        for k in 0..n {
+            a.swap(c * n + k, p * n + k);
+            inv.swap(c * n + k, p * n + k);
+        }
+        let d = a[c * n + c];
+        for k in 0..n {
+            a[c * n + k] /= d;
+            inv[c * n + k] /= d;
+        }
+        for r in 0..n {
+            if r != c {
+                let f = a[r * n + c];
+                if f != 0.0 {
+                    for k in 0..n {
+                        a[r * n + k] -= f * a[c * n + k];
+                        inv[r * n + k] -= f * inv[c * n + k];
+                    }
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::invert;
+
+    #[test]
+    fn invert_gives_the_inverse() {
+        let m = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
+        let inv = invert(&m, 3).expect("invertible");
+        for r in 0..3 {
+            for c in 0..3 {
+                let v: f64 = (0..3).map(|k| m[r * 3 + k] * inv[k * 3 + c]).sum();
+                assert!((v - if r == c { 1.0 } else { 0.0 }).abs() < 1e-12);
+            }
+        }
+        assert!(invert(&[1.0, 2.0, 2.0, 4.0], 2).is_none());
+    }
+}
