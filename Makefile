@@ -55,7 +55,9 @@ test-rust: fixture
 
 test-python: build py fixture
 	# One process per suite: native libraries loaded by one suite cannot affect another.
-	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests
+	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py
+	# The differential suite: the `reference` physics against PyBullet.
+	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/reference
 	$(PY) -m pytest -q crates/py/tests
 	UMPNET_BIN=$(UMPNET) PYTHONPATH=train_py $(PY) -m pytest -q train_py/tests
 
