@@ -3,19 +3,22 @@ use anyhow::{Context, Result};
 use image::RgbImage;
 use std::path::PathBuf;
 use umpnet_eval::Policy;
-use umpnet_eval::episode::{Step, run_episode};
+use umpnet_eval::episode::{EpisodeConfig, Step, run_episode};
 use umpnet_sim::camera::Camera;
 use umpnet_sim::math::Vec3;
 use umpnet_sim::render::{Frame, RendererKind, create_renderer};
-use umpnet_sim::scene::{GOAL_STEPS, Task};
+use umpnet_sim::scene::Task;
 
 #[derive(clap::Args)]
 pub struct EpisodeArgs {
     #[command(flatten)]
     pub object: crate::ObjectArgs,
-    /// Number of direction actions (default: the category's budget; 15 for goals).
+    /// Number of direction actions (default: the protocol's budget).
     #[arg(long)]
     pub steps: Option<usize>,
+    /// Evaluation protocol: paper (the paper's evaluation code) or strict.
+    #[arg(long, default_value = "paper", value_parser = crate::parse_protocol)]
+    pub protocol: umpnet_eval::Protocol,
     /// random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
     #[arg(long, default_value = "oracle")]
     pub policy: String,
@@ -41,11 +44,9 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
     };
     let resolution = resolved.resolution.unwrap_or(a.resolution);
     let scene = a.object.scene(task)?;
-    let budget = a.steps.unwrap_or(match (task, scene.category) {
-        (Task::Goal, _) => GOAL_STEPS,
-        (Task::Exploration, Some(c)) => c.step_budget(),
-        (Task::Exploration, None) => 10,
-    });
+    let budget = a
+        .steps
+        .unwrap_or_else(|| a.protocol.budget(task, scene.category));
     let camera = Camera::reference(resolution.0, resolution.1);
     let mut pictures: Vec<RgbImage> = Vec::new();
     let mut hook = |t: usize, f: &Frame, step: Option<&Step>, pixel: (u32, u32)| {
@@ -56,8 +57,11 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         &camera,
         create_renderer(a.renderer)?,
         policy.as_mut(),
-        budget,
-        a.object.seed,
+        EpisodeConfig {
+            budget,
+            seed: a.object.seed,
+            protocol: a.protocol,
+        },
         if a.out.is_some() {
             Some(&mut hook)
         } else {

@@ -3,9 +3,11 @@ use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use umpnet_eval::Protocol;
 use umpnet_eval::bench::{BenchConfig, EpisodeOutcome, PolicyFactory, mean_ci, run_benchmark};
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
+use umpnet_sim::physics::PhysicsProfile;
 use umpnet_sim::render::RendererKind;
 use umpnet_sim::scene::Task;
 
@@ -33,6 +35,12 @@ pub struct EvalArgs {
     pub resolution: (u32, u32),
     #[arg(long, default_value = "auto")]
     pub renderer: RendererKind,
+    /// Physics profile: reference (the paper's simulator) or ideal.
+    #[arg(long, default_value = "reference", value_parser = crate::parse_physics)]
+    pub physics: PhysicsProfile,
+    /// Evaluation protocol: paper (the paper's evaluation code) or strict.
+    #[arg(long, default_value = "paper", value_parser = crate::parse_protocol)]
+    pub protocol: Protocol,
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
@@ -107,6 +115,8 @@ pub fn run(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         camera: Camera::reference(resolution.0, resolution.1),
         renderer: a.renderer,
         steps: None,
+        physics: a.physics,
+        protocol: a.protocol,
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
@@ -144,6 +154,7 @@ pub fn run(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     let table = render_table(a.task, &names, &categories, &cells);
     let summary = serde_json::json!({
         "task": a.task, "seed": a.seed, "episodes_per_category": a.episodes_per_category,
+        "physics": a.physics, "protocol": a.protocol,
         "resolution": [resolution.0, resolution.1], "policies": names, "wall_seconds": wall, "failed_episodes": failures.len(),
         "cells": cells.iter().map(|((p, c, m), v)| { let (mean, ci) = mean_ci(v); serde_json::json!({"policy": p, "category": c.name(), "metric": m, "mean": mean, "ci95": ci, "n": v.len()}) }).collect::<Vec<_>>(),
     });

@@ -13,6 +13,7 @@ use clap::{Parser, Subcommand};
 use rand::SeedableRng;
 use std::path::PathBuf;
 use umpnet_sim::objects::{Category, InstanceSplit, nth_instance};
+use umpnet_sim::physics::PhysicsProfile;
 use umpnet_sim::scene::{ObjectSource, Scene, Task};
 
 #[derive(Parser)]
@@ -107,6 +108,14 @@ pub fn parse_category(s: &str) -> std::result::Result<Category, String> {
     s.parse::<Category>().map_err(|e| e.to_string())
 }
 
+pub fn parse_physics(s: &str) -> std::result::Result<PhysicsProfile, String> {
+    s.parse::<PhysicsProfile>().map_err(|e| e.to_string())
+}
+
+pub fn parse_protocol(s: &str) -> std::result::Result<umpnet_eval::Protocol, String> {
+    s.parse::<umpnet_eval::Protocol>()
+}
+
 /// Which object and scene: a generated instance of a category, or a URDF file.
 #[derive(clap::Args, Clone)]
 pub struct ObjectArgs {
@@ -125,6 +134,10 @@ pub struct ObjectArgs {
     /// Seed of the generated dataset.
     #[arg(long, default_value_t = 0)]
     pub dataset_seed: u64,
+    /// Physics profile: reference (the paper's simulator) or ideal (every pull
+    /// follows the joint's path).
+    #[arg(long, default_value = "reference", value_parser = parse_physics)]
+    pub physics: PhysicsProfile,
 }
 
 impl ObjectArgs {
@@ -157,7 +170,11 @@ impl ObjectArgs {
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.seed);
         Ok(umpnet_eval::bench::sample_visible_scene(
-            &mut rng, task, category, object,
+            &mut rng,
+            task,
+            category,
+            object,
+            self.physics,
         )?)
     }
 }

@@ -1,8 +1,9 @@
 //! The paper's benchmark: per category, K fixed scenes (pure functions of
 //! seed, task, category and index), every policy on the same scenes, episodes
 //! in parallel with results independent of the thread count.
-use crate::episode::{Episode, run_episode};
+use crate::episode::{Episode, EpisodeConfig, run_episode};
 use crate::policy::Policy;
+use crate::protocol::Protocol;
 use crate::{EvalError, Result};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -11,6 +12,7 @@ use std::sync::Arc;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::SimEnv;
 use umpnet_sim::objects::{Category, InstanceSplit, nth_instance};
+use umpnet_sim::physics::PhysicsProfile;
 use umpnet_sim::render::{CpuRenderer, RendererKind, Segment, create_renderer};
 use umpnet_sim::scene::{ObjectSource, Scene, Task, sample_scene};
 
@@ -50,6 +52,7 @@ pub fn benchmark_scene(
     category: Category,
     k: u32,
     dataset_seed: u64,
+    physics: PhysicsProfile,
 ) -> Result<Scene> {
     let index = nth_instance(category, InstanceSplit::Test, k % INSTANCES_PER_CATEGORY);
     let object = ObjectSource::Generated {
@@ -62,22 +65,28 @@ pub fn benchmark_scene(
         task,
         Some(category),
         object,
+        physics,
     )
 }
 
-/// Samples a scene whose (goal) joint's links are visible in a small CPU render.
+/// Samples a scene whose (goal) joint's links are visible in a small CPU
+/// render, placed as the object's file says (see [`ObjectSource::pose`]).
 pub fn sample_visible_scene(
     rng: &mut ChaCha8Rng,
     task: Task,
     category: Option<Category>,
     object: ObjectSource,
+    physics: PhysicsProfile,
 ) -> Result<Scene> {
-    let model = object.load()?;
+    let pose = object.pose()?;
+    let model = object.load()?.scaled(pose.scale)?;
     let mut last = None;
     // One environment for every try: `reset` keeps the loaded object and its meshes.
     let mut env: Option<SimEnv> = None;
     for _ in 0..20 {
-        let scene = sample_scene(rng, task, category, object.clone(), &model, None)?;
+        let mut scene = sample_scene(rng, task, category, object.clone(), &model, None)?;
+        scene.physics = physics;
+        scene.pose = pose;
         let env = match env.as_mut() {
             Some(e) => {
                 e.reset(scene.clone())?;
@@ -120,8 +129,10 @@ pub struct BenchConfig {
     pub dataset_seed: u64,
     pub camera: Camera,
     pub renderer: RendererKind,
-    /// Step budget override (default: the category's).
+    /// Step budget override (default: the protocol's).
     pub steps: Option<usize>,
+    pub physics: PhysicsProfile,
+    pub protocol: Protocol,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -162,11 +173,17 @@ fn run_scene(
     category: Category,
     k: u32,
 ) -> Vec<EpisodeOutcome> {
-    let scene = benchmark_scene(cfg.seed, cfg.task, category, k, cfg.dataset_seed);
-    let budget = cfg.steps.unwrap_or(match cfg.task {
-        Task::Exploration => category.step_budget(),
-        Task::Goal => umpnet_sim::scene::GOAL_STEPS,
-    });
+    let scene = benchmark_scene(
+        cfg.seed,
+        cfg.task,
+        category,
+        k,
+        cfg.dataset_seed,
+        cfg.physics,
+    );
+    let budget = cfg
+        .steps
+        .unwrap_or_else(|| cfg.protocol.budget(cfg.task, Some(category)));
     policies
         .iter()
         .map(|(name, make)| {
@@ -182,8 +199,11 @@ fn run_scene(
                         &cfg.camera,
                         renderer,
                         policy.as_mut(),
-                        budget,
-                        seed,
+                        EpisodeConfig {
+                            budget,
+                            seed,
+                            protocol: cfg.protocol,
+                        },
                         None,
                     )
                     .map_err(|e| EvalError::Episode(format!("{e} (scene: {})", scene.to_json())))

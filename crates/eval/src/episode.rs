@@ -1,7 +1,8 @@
 //! One episode: position action, then up to N direction actions, with the
-//! paper's metrics computed from the grasped joint's trajectory.
+//! metrics of a [`Protocol`] computed from the grasped joint's trajectory.
 use crate::Result;
 use crate::policy::{Candidates, Decision, Observation, Policy, StepRecord};
+use crate::protocol::{self, Protocol};
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::{DELTA, Pick, SimEnv};
 use umpnet_sim::render::{Frame, Renderer};
@@ -25,14 +26,29 @@ pub struct Episode {
     pub valid_position: bool,
     pub joint: Option<usize>,
     pub steps: Vec<Step>,
+    /// The policy chose to stop.
     pub stopped_early: bool,
+    /// The protocol ended the episode (paper: a limit reached in exploration,
+    /// the goal reached in the goal task).
+    pub ended_by_protocol: bool,
     pub budget: usize,
+    pub protocol: Protocol,
     pub metrics: Metrics,
+}
+
+/// How an episode runs: its budget of direction actions, the policy's seed
+/// and the protocol that ends and scores it.
+#[derive(Clone, Copy, Debug)]
+pub struct EpisodeConfig {
+    pub budget: usize,
+    pub seed: u64,
+    pub protocol: Protocol,
 }
 
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct Metrics {
-    /// Exploration: unique states after each step (length = budget).
+    /// Exploration: unique states after each step (length = budget), as the
+    /// protocol counts them.
     pub unique_states: Vec<f32>,
     pub novel_state_ratio: f32,
     pub single_action_effect: f32,
@@ -51,10 +67,14 @@ pub fn run_episode(
     camera: &Camera,
     renderer: Box<dyn Renderer>,
     policy: &mut dyn Policy,
-    budget: usize,
-    seed: u64,
+    config: EpisodeConfig,
     mut hook: Option<FrameHook>,
 ) -> Result<Episode> {
+    let EpisodeConfig {
+        budget,
+        seed,
+        protocol,
+    } = config;
     let mut env = SimEnv::new(scene.clone(), camera.clone(), renderer)?;
     policy.reset(seed);
     let first = env.render()?;
@@ -78,6 +98,7 @@ pub fn run_episode(
     };
     let mut steps: Vec<Step> = Vec::new();
     let mut stopped_early = false;
+    let mut ended_by_protocol = false;
     let mut frame = first;
     if let Some(h) = hook.as_mut() {
         h(0, &frame, None, pixel);
@@ -123,10 +144,23 @@ pub fn run_episode(
                 let after = env.render()?;
                 h(t + 1, &after, Some(&step), pixel);
             }
+            let done = protocol == Protocol::Paper
+                && joint.is_some_and(|j| paper_episode_over(scene, &env, j, &step));
             steps.push(step);
+            if done {
+                ended_by_protocol = true;
+                break;
+            }
         }
     }
-    let metrics = metrics(scene, joint.filter(|_| valid), &env, &steps, budget);
+    let metrics = metrics(
+        scene,
+        joint.filter(|_| valid),
+        &env,
+        &steps,
+        budget,
+        protocol,
+    );
     Ok(Episode {
         policy: policy.name(),
         scene: scene.clone(),
@@ -135,9 +169,29 @@ pub fn run_episode(
         joint,
         steps,
         stopped_early,
+        ended_by_protocol,
         budget,
+        protocol,
         metrics,
     })
+}
+
+/// The paper's early end after `step` (module docs of [`protocol`]).
+fn paper_episode_over(scene: &Scene, env: &SimEnv, joint: usize, step: &Step) -> bool {
+    let jm = &env.model().joints[joint];
+    let thr = protocol::threshold(jm.kind.is_prismatic(), jm.lower, jm.upper);
+    let l = &step.record.labels;
+    match (&scene.task, &scene.goal) {
+        (Task::Exploration, _) => {
+            let start = env.grasp_start_value().unwrap_or(l.joint_before);
+            protocol::reached_limit(l.joint_after, start, jm.lower, jm.upper, thr)
+        }
+        (Task::Goal, Some(g)) => {
+            g.joint == joint
+                && protocol::reached_goal(l.joint_before, l.joint_after, g.joints[joint], thr)
+        }
+        (Task::Goal, None) => false,
+    }
 }
 
 fn metrics(
@@ -146,53 +200,102 @@ fn metrics(
     env: &SimEnv,
     steps: &[Step],
     budget: usize,
+    protocol: Protocol,
 ) -> Metrics {
     let mut m = Metrics::default();
+    let after: Vec<f32> = steps.iter().map(|s| s.record.labels.joint_after).collect();
     match scene.task {
         Task::Exploration => {
-            let mut visited: Vec<f32> = Vec::new();
-            if let (Some(_), Some(first)) = (joint, steps.first()) {
-                visited.push(first.record.labels.joint_before);
-            }
-            let mut effect = 0.0;
-            for t in 0..budget {
-                if let Some(s) = steps.get(t) {
-                    let v = s.record.labels.joint_after;
-                    if visited.iter().all(|u| (u - v).abs() >= DELTA) {
-                        visited.push(v);
+            let Some(j) = joint else {
+                m.unique_states = vec![0.0; budget];
+                return m;
+            };
+            let start = steps
+                .first()
+                .map(|s| s.record.labels.joint_before)
+                .unwrap_or_else(|| env.articulation().joint_position(j));
+            // Steps the protocol scores: the paper stops at a limit; a policy
+            // that stopped leaves the state as it was for the rest.
+            let ended = steps.last().is_some_and(|_| after.len() < budget)
+                && protocol == Protocol::Paper
+                && steps
+                    .last()
+                    .is_some_and(|s| paper_episode_over(scene, env, j, s));
+            let scored = if ended { after.len() } else { budget };
+            let value_at = |t: usize| after.get(t).or(after.last()).copied().unwrap_or(start);
+            m.single_action_effect = steps
+                .iter()
+                .map(|s| s.record.labels.r_dist / DELTA)
+                .sum::<f32>()
+                / scored.max(1) as f32;
+            match protocol {
+                Protocol::Paper => {
+                    // The reference's signed walk: a step back toward the start
+                    // (once more than 0.02 away) counts negative.
+                    let scale = if env.model().joints[j].kind.is_prismatic() {
+                        scene.pose.scale
+                    } else {
+                        1.0
+                    };
+                    let mut walk = 0.0f32;
+                    let mut visited = Vec::with_capacity(scored);
+                    let mut before = start;
+                    for t in 0..scored {
+                        let now = value_at(t);
+                        let from_start = before - start;
+                        let back = from_start.abs() > 0.02 && from_start * (now - before) < 0.0;
+                        walk += if back { -1.0 } else { 1.0 } * (now - before).abs();
+                        visited.push(walk.abs() / scale);
+                        before = now;
                     }
-                    effect += s.record.labels.r_dist / DELTA;
+                    m.unique_states = (0..budget)
+                        .map(|t| {
+                            protocol::paper_unique_states(&visited[..(t + 1).min(scored)]) as f32
+                        })
+                        .collect();
+                    m.novel_state_ratio =
+                        protocol::paper_unique_states(&visited) as f32 / scored.max(1) as f32;
                 }
-                // The initial state is not a discovery.
-                m.unique_states.push(visited.len().saturating_sub(1) as f32);
+                Protocol::Strict => {
+                    let values: Vec<f32> = (0..budget).map(value_at).collect();
+                    m.unique_states = protocol::strict_unique_states(start, &values)
+                        .into_iter()
+                        .map(|u| u as f32)
+                        .collect();
+                    m.novel_state_ratio =
+                        m.unique_states.last().copied().unwrap_or(0.0) / budget.max(1) as f32;
+                }
             }
-            m.novel_state_ratio =
-                m.unique_states.last().copied().unwrap_or(0.0) / budget.max(1) as f32;
-            m.single_action_effect = effect / budget.max(1) as f32;
         }
         Task::Goal => {
-            let goal = scene.goal.as_ref();
-            let dist = |v: f32| -> f32 {
-                match goal {
-                    Some(g) => {
-                        let (init, target) = (scene.joints[g.joint], g.joints[g.joint]);
-                        (v - target).abs() / (target - init).abs().max(1e-6)
-                    }
-                    None => 1.0,
-                }
+            let Some(g) = scene.goal.as_ref() else {
+                m.normalized_distance = 1.0;
+                m.normalized_distance_curve = vec![1.0; budget];
+                return m;
             };
+            let (init, target) = (scene.joints[g.joint], g.joints[g.joint]);
+            let dist = |v: f32| -> f32 { (v - target).abs() / (target - init).abs().max(1e-6) };
+            let reached = protocol == Protocol::Paper
+                && joint.is_some()
+                && steps
+                    .last()
+                    .is_some_and(|s| paper_episode_over(scene, env, g.joint, s));
             let mut last = 1.0;
             for t in 0..budget {
                 if joint.is_some()
-                    && let Some(s) = steps.get(t)
+                    && let Some(v) = after.get(t)
                 {
-                    last = dist(s.record.labels.joint_after);
+                    last = dist(*v);
+                }
+                if reached && t + 1 >= after.len() {
+                    last = 0.0;
                 }
                 m.normalized_distance_curve.push(last);
             }
-            m.normalized_distance = match (joint, goal) {
-                (Some(_), Some(g)) => dist(env.articulation().joint_position(g.joint)),
-                _ => 1.0,
+            m.normalized_distance = match joint {
+                None => 1.0,
+                Some(_) if reached => 0.0,
+                Some(_) => dist(env.articulation().joint_position(g.joint)),
             };
             m.success = m.normalized_distance < 0.1;
         }

@@ -4,10 +4,12 @@ pub mod bench;
 pub mod episode;
 pub mod learned;
 pub mod policy;
+pub mod protocol;
 pub mod scripted;
 pub mod train_env;
 
 pub use policy::{Decision, Observation, Policy, StepRecord};
+pub use protocol::Protocol;
 
 #[derive(Debug, thiserror::Error)]
 pub enum EvalError {

@@ -71,14 +71,14 @@ pub struct OraclePolicy {
 }
 
 impl OraclePolicy {
-    /// Direction that moves `joint` in the + sense at the gripper's position.
+    /// Direction that moves `joint` in the + sense at the grasped point.
     fn motion_direction(env: &SimEnv, joint: usize) -> Option<Vec3> {
         let art = env.articulation();
         let (axis, origin) = art.joint_axis_in_world(joint);
         if env.model().joints[joint].kind.is_prismatic() {
             return Some(axis);
         }
-        let g = art.gripper_position()?;
+        let g = env.grasp_point_in_world()?;
         let t = axis.cross(g - origin);
         (t.length() > 1e-4).then(|| t.normalize())
     }

@@ -12,6 +12,7 @@ use umpnet_sim::camera::Camera;
 use umpnet_sim::env::{Pick, SimEnv, StepLabels};
 use umpnet_sim::math::Vec3;
 use umpnet_sim::objects::{Category, InstanceSplit, nth_instance};
+use umpnet_sim::physics::PhysicsProfile;
 use umpnet_sim::render::{Frame, RendererKind, create_renderer};
 use umpnet_sim::scene::{ObjectSource, Scene, Task};
 
@@ -28,6 +29,7 @@ pub struct EnvConfig {
     pub dataset_seed: u64,
     /// A URDF file instead of generated instances.
     pub object: Option<PathBuf>,
+    pub physics: PhysicsProfile,
 }
 
 impl EnvConfig {
@@ -45,6 +47,7 @@ impl EnvConfig {
             renderer: RendererKind::Auto,
             dataset_seed: 0,
             object: None,
+            physics: PhysicsProfile::default(),
         }
     }
 }
@@ -137,7 +140,13 @@ impl TrainEnv {
                 )
             }
         };
-        crate::bench::sample_visible_scene(&mut self.rng, self.cfg.task, category, object)
+        crate::bench::sample_visible_scene(
+            &mut self.rng,
+            self.cfg.task,
+            category,
+            object,
+            self.cfg.physics,
+        )
     }
 
     fn observe(&self, frame: &Frame) -> Result<EnvObservation> {

@@ -34,6 +34,8 @@ fn failed_episodes_are_reported_with_their_scene_and_the_run_goes_on() {
         camera: Camera::reference(48, 64),
         renderer: RendererKind::Cpu,
         steps: None,
+        physics: Default::default(),
+        protocol: Default::default(),
     };
     let broken: PolicyFactory = Arc::new(|| Ok(Box::new(Broken) as Box<dyn Policy>));
     let oracle: PolicyFactory =

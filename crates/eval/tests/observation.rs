@@ -14,7 +14,7 @@ fn estimated_normals_agree_with_exact_ones() {
     let _ = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let mut angles = Vec::new();
     for &c in Category::ALL {
-        let scene = benchmark_scene(0, Task::Exploration, c, 0, 0).unwrap();
+        let scene = benchmark_scene(0, Task::Exploration, c, 0, 0, Default::default()).unwrap();
         let mut env = SimEnv::new(
             scene,
             Camera::reference(120, 160),

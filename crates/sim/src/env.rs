@@ -51,6 +51,7 @@ struct Grasp {
     link: usize,
     joint: usize,
     normal_in_link: Vec3,
+    point_in_link: Vec3,
     j0: f32,
 }
 
@@ -65,7 +66,7 @@ pub struct SimEnv {
 
 impl SimEnv {
     pub fn new(scene: Scene, camera: Camera, mut renderer: Box<dyn Renderer>) -> Result<Self> {
-        let model = Arc::new(scene.object.load()?);
+        let model = Arc::new(scene.load_model()?);
         scene.validate(&model)?;
         let mut art = Articulation::new(
             model.clone(),
@@ -86,7 +87,7 @@ impl SimEnv {
 
     /// Same object, another scene: no reloading of meshes.
     pub fn reset(&mut self, scene: Scene) -> Result<()> {
-        if scene.object != self.scene.object {
+        if scene.object != self.scene.object || scene.pose.scale != self.scene.pose.scale {
             *self = Self::new(
                 scene,
                 self.camera.clone(),
@@ -129,6 +130,16 @@ impl SimEnv {
     }
     pub fn grasped_link(&self) -> Option<usize> {
         self.grasp.as_ref().map(|g| g.link)
+    }
+    /// The grasped point on the link, where it is now (the gripper may lag
+    /// behind it when the reference suction slips).
+    pub fn grasp_point_in_world(&self) -> Option<Vec3> {
+        let g = self.grasp.as_ref()?;
+        Some(
+            self.art
+                .world_from_link(g.link)
+                .transform_point(g.point_in_link),
+        )
     }
     /// Joint value at the moment of the grasp (j_0).
     pub fn grasp_start_value(&self) -> Option<f32> {
@@ -245,12 +256,13 @@ impl SimEnv {
         } = &pick
         {
             self.art.attach(*point_in_world, *link)?;
-            let normal_in_link =
-                self.art.world_from_link(*link).rotation.inverse() * *normal_in_world;
+            let world_from_link = self.art.world_from_link(*link);
+            let normal_in_link = world_from_link.rotation.inverse() * *normal_in_world;
             self.grasp = Some(Grasp {
                 link: *link,
                 joint: *joint,
                 normal_in_link,
+                point_in_link: world_from_link.inverse_transform_point(*point_in_world),
                 j0: self.art.joint_position(*joint),
             });
         }

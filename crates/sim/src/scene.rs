@@ -42,6 +42,43 @@ pub enum ObjectSource {
 }
 
 impl ObjectSource {
+    /// Where the file's object sits: from `object_meta_info.json` beside a
+    /// URDF when there is one (PartNet-Mobility's placement, as the paper's
+    /// code reads it), else as the file is.
+    pub fn pose(&self) -> Result<ObjectPose> {
+        let ObjectSource::File { path } = self else {
+            return Ok(ObjectPose::default());
+        };
+        let meta = path.with_file_name("object_meta_info.json");
+        if !meta.is_file() {
+            return Ok(ObjectPose::default());
+        }
+        #[derive(serde::Deserialize)]
+        struct Meta {
+            orientation: [f32; 4],
+            offset_z: f32,
+            scale: f32,
+        }
+        let text = std::fs::read_to_string(&meta).map_err(|source| SimError::Io {
+            file: meta.clone(),
+            source,
+        })?;
+        let m: Meta = serde_json::from_str(&text).map_err(|e| {
+            SimError::InvalidScene(format!(
+                "{}: {e}; expected `orientation` (4 numbers, x y z w), `offset_z` and `scale`",
+                meta.display()
+            ))
+        })?;
+        let pose = ObjectPose {
+            orientation: m.orientation,
+            offset_z: m.offset_z,
+            scale: m.scale,
+        };
+        pose.validate()
+            .map_err(|e| SimError::InvalidScene(format!("{}: {e}", meta.display())))?;
+        Ok(pose)
+    }
+
     pub fn load(&self) -> Result<ObjectModel> {
         match self {
             ObjectSource::Generated {
@@ -62,6 +99,59 @@ pub struct GoalSpec {
     pub joints: Vec<f32>,
 }
 
+/// How the object file sits in the scene, as the paper's code reads it from a
+/// PartNet-Mobility `object_meta_info.json`: a rotation from the file's axes
+/// (so the front faces the camera), a lift onto the floor and a global scale.
+/// Generated objects need none of it.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ObjectPose {
+    /// Quaternion (x, y, z, w) applied before the scene's yaw.
+    pub orientation: [f32; 4],
+    /// Lift of the base above the floor, in the file's units (times `scale`).
+    pub offset_z: f32,
+    /// Uniform scale of the whole object (PartNet-Mobility: 0.55).
+    pub scale: f32,
+}
+
+impl Default for ObjectPose {
+    fn default() -> Self {
+        Self {
+            orientation: [0.0, 0.0, 0.0, 1.0],
+            offset_z: 0.0,
+            scale: 1.0,
+        }
+    }
+}
+
+impl ObjectPose {
+    pub fn is_identity(&self) -> bool {
+        *self == Self::default()
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        let q = Quat::from_array(self.orientation);
+        if !(self.orientation.iter().all(|v| v.is_finite()) && q.length() > 1e-6) {
+            return Err(SimError::InvalidScene(format!(
+                "`pose.orientation` must be a non-zero quaternion (x, y, z, w), got {:?}",
+                self.orientation
+            )));
+        }
+        if !self.offset_z.is_finite() {
+            return Err(SimError::InvalidScene(format!(
+                "`pose.offset_z` must be finite, got {}",
+                self.offset_z
+            )));
+        }
+        if !(self.scale.is_finite() && self.scale > 0.0 && self.scale <= 1000.0) {
+            return Err(SimError::InvalidScene(format!(
+                "`pose.scale` must be in (0, 1000], got {}",
+                self.scale
+            )));
+        }
+        Ok(())
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Scene {
     pub task: Task,
@@ -76,18 +166,49 @@ pub struct Scene {
     /// The physics the scene runs under (absent in older scene files: `reference`).
     #[serde(default)]
     pub physics: PhysicsProfile,
+    /// Placement of the object file (absent: as the file is, unscaled).
+    #[serde(default, skip_serializing_if = "ObjectPose::is_identity")]
+    pub pose: ObjectPose,
 }
 
-/// Goal scenes put the initial state at most this many δ from the goal, so
-/// that the paper's 15 steps can reach it.
+/// The strict protocol's goal budget (the paper's text; its code uses the
+/// category's budget).
 pub const GOAL_STEPS: usize = 15;
+
+/// How far the reference moves a freely moving grasp point in one action (m).
+const FREE_PULL: f32 = 0.13;
+
+/// A joint's lever: the largest distance of its part's geometry from a hinge
+/// axis (1 for a slider, whose value is in metres already).
+fn joint_lever(model: &ObjectModel, joint: usize) -> f32 {
+    let jm = &model.joints[joint];
+    if jm.kind.is_prismatic() {
+        return 1.0;
+    }
+    let axis = jm.axis_in_joint;
+    // The child's frame is the joint frame at value 0, so its vertices are
+    // already in joint coordinates.
+    model.links[jm.child]
+        .visuals
+        .iter()
+        .flat_map(|v| v.mesh_in_link.positions.iter())
+        .map(|p| (*p - axis * p.dot(axis)).length())
+        .fold(0.0, f32::max)
+}
 
 impl Scene {
     pub fn world_from_base(&self) -> Pose3 {
+        let p = &self.pose;
         Pose3::from_parts(
-            Vec3::new(self.base_xy[0], self.base_xy[1], 0.0),
-            Quat::from_rotation_z(self.base_yaw),
+            Vec3::new(self.base_xy[0], self.base_xy[1], p.scale * p.offset_z),
+            Quat::from_rotation_z(self.base_yaw) * Quat::from_array(p.orientation).normalize(),
         )
+    }
+
+    /// The scene's object, loaded and scaled by its pose.
+    pub fn load_model(&self) -> Result<ObjectModel> {
+        self.pose.validate()?;
+        self.object.load()?.scaled(self.pose.scale)
     }
 
     pub fn to_json(&self) -> String {
@@ -100,6 +221,7 @@ impl Scene {
 
     /// Checks the scene against its model: one value per joint, finite, goal joint movable.
     pub fn validate(&self, model: &ObjectModel) -> Result<()> {
+        self.pose.validate()?;
         let n = model.joints.len();
         if self.joints.len() != n {
             return Err(SimError::InvalidScene(format!(
@@ -209,11 +331,18 @@ pub fn sample_scene(
             } else {
                 (-1.5, 1.5)
             };
-            let reach = (hi - lo).min(GOAL_STEPS as f32 * crate::env::DELTA);
+            // The goal sits at a limit; the start at most as far from it as the
+            // category's budget of free pulls can cover with this part's lever
+            // (the reference moves a free grasp point about 0.13 m per action),
+            // and at least half of that.
+            let budget = category.map_or(GOAL_STEPS, |c| c.step_budget());
+            let per_step = FREE_PULL / joint_lever(model, j).max(FREE_PULL);
+            let reach = (hi - lo).min(0.8 * budget as f32 * per_step);
+            let gap = reach * rng.random_range(0.5f32..=1.0);
             let (goal_v, init_v) = if rng.random_bool(0.5) {
-                (hi, hi - reach)
+                (hi, hi - gap)
             } else {
-                (lo, lo + reach)
+                (lo, lo + gap)
             };
             joints[j] = init_v;
             let mut goal = joints.clone();
@@ -233,5 +362,6 @@ pub fn sample_scene(
         joints,
         goal,
         physics: PhysicsProfile::default(),
+        pose: ObjectPose::default(),
     })
 }
