@@ -47,7 +47,7 @@ impl ObjectSource {
     /// code reads it), else as the file is.
     pub fn pose(&self) -> Result<ObjectPose> {
         let ObjectSource::File { path } = self else {
-            return Ok(ObjectPose::default());
+            return Ok(objects::generated_pose());
         };
         let meta = path.with_file_name("object_meta_info.json");
         if !meta.is_file() {
@@ -79,13 +79,14 @@ impl ObjectSource {
         Ok(pose)
     }
 
+    /// The object as its file has it; [`Scene::load_model`] places and scales it.
     pub fn load(&self) -> Result<ObjectModel> {
         match self {
             ObjectSource::Generated {
                 category,
                 index,
                 dataset_seed,
-            } => objects::generate(*category, *index, *dataset_seed).model(),
+            } => objects::generate(*category, *index, *dataset_seed).file_model(),
             ObjectSource::File { path } => load_urdf(path),
         }
     }
@@ -364,4 +365,82 @@ pub fn sample_scene(
         physics: PhysicsProfile::default(),
         pose: ObjectPose::default(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene() -> Scene {
+        Scene {
+            task: Task::Exploration,
+            category: Some(Category::Door),
+            object: ObjectSource::Generated {
+                category: Category::Door,
+                index: 0,
+                dataset_seed: 0,
+            },
+            base_xy: [0.0, -0.5],
+            base_yaw: 0.1,
+            joints: vec![0.3],
+            goal: None,
+            physics: PhysicsProfile::Ideal,
+            pose: ObjectPose {
+                orientation: [0.0, 0.0, 0.7071068, 0.7071068],
+                offset_z: 0.4,
+                scale: 0.55,
+            },
+        }
+    }
+
+    #[test]
+    fn physics_and_pose_round_trip_and_default_when_absent() {
+        let s = scene();
+        assert_eq!(Scene::from_json(&s.to_json()).unwrap(), s);
+        // A scene file written before the two fields existed.
+        let old = r#"{"task":"exploration","category":"Door","object":{"kind":"generated","category":"Door","index":0,"dataset_seed":0},"base_xy":[0.0,-0.5],"base_yaw":0.1,"joints":[0.3],"goal":null}"#;
+        let s = Scene::from_json(old).unwrap();
+        assert_eq!(s.physics, PhysicsProfile::Reference);
+        assert_eq!(s.pose, ObjectPose::default());
+    }
+
+    #[test]
+    fn the_pose_lifts_turns_and_scales_the_base() {
+        let s = scene();
+        let p = s.world_from_base();
+        assert!((p.translation.z - 0.55 * 0.4).abs() < 1e-6);
+        // The file's +x turns to +y (the pose's 90 degrees) plus the yaw.
+        let x = p.rotation * Vec3::X;
+        assert!((x.y - 0.1f32.cos()).abs() < 1e-5, "{x}");
+        let bad = Scene {
+            pose: ObjectPose {
+                scale: -1.0,
+                ..ObjectPose::default()
+            },
+            ..scene()
+        };
+        assert!(bad.load_model().is_err());
+    }
+
+    #[test]
+    fn object_meta_info_beside_a_urdf_sets_the_pose_and_bad_files_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let urdf = objects::generate(Category::Microwave, 0, 0)
+            .write(dir.path())
+            .unwrap();
+        let source = ObjectSource::File { path: urdf.clone() };
+        assert_eq!(source.pose().unwrap(), objects::generated_pose());
+        let meta = urdf.with_file_name("object_meta_info.json");
+        std::fs::write(
+            &meta,
+            r#"{"orientation":[0,0,0,1],"offset_z":0.3,"scale":0.5,"moveable_link":{}}"#,
+        )
+        .unwrap();
+        assert_eq!(source.pose().unwrap().offset_z, 0.3);
+        std::fs::write(&meta, r#"{"orientation":[0,0,0],"scale":0.5}"#).unwrap();
+        let e = source.pose().unwrap_err().to_string();
+        assert!(e.contains("object_meta_info.json"), "{e}");
+        std::fs::remove_file(&meta).unwrap();
+        assert_eq!(source.pose().unwrap(), ObjectPose::default());
+    }
 }

@@ -32,9 +32,6 @@ pub(crate) struct Parts {
     origins: Vec<Vec3>,
 }
 
-/// Density used for generated inertials (kg/m^3): light furniture.
-const DENSITY: f32 = 200.0;
-
 impl Parts {
     /// The fixed base; `boxes` are (centre, size) in the object frame.
     pub fn base(&mut self, boxes: &[(Vec3, Vec3)], color: [f32; 3]) -> usize {
@@ -94,6 +91,30 @@ impl Parts {
         format!("textured_objs/original-{link}.obj")
     }
 
+    /// Every length multiplied by `factor`: meshes, joint origins, slider limits.
+    pub fn scale(&mut self, factor: f32) {
+        for l in &mut self.links {
+            for p in &mut l.mesh.positions {
+                *p *= factor;
+            }
+        }
+        for o in &mut self.origins {
+            *o *= factor;
+        }
+        for j in &mut self.joints {
+            j.origin *= factor;
+            if j.kind == JointKind::Prismatic {
+                j.lower *= factor;
+                j.upper *= factor;
+            }
+        }
+    }
+
+    /// The URDF text. Every link weighs 1 kg, PyBullet's default for the
+    /// inertial-less links of PartNet-Mobility, but with its centre of mass at
+    /// the middle of its geometry and the inertia of its bounding box (the
+    /// default would put it on the hinge, which makes a small part
+    /// unmovable by the reference's heavy mount).
     pub fn urdf(&self, name: &str) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "<?xml version=\"1.0\"?>\n<robot name=\"{name}\">");
@@ -101,7 +122,7 @@ impl Parts {
             let (lo, hi) = l.mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
             let size = (hi - lo).max(Vec3::splat(0.005));
             let com = (lo + hi) * 0.5;
-            let mass = (DENSITY * size.x * size.y * size.z).max(0.05);
+            let mass = 1.0f32;
             let ix = mass / 12.0 * (size.y * size.y + size.z * size.z);
             let iy = mass / 12.0 * (size.x * size.x + size.z * size.z);
             let iz = mass / 12.0 * (size.x * size.x + size.y * size.y);

@@ -871,7 +871,8 @@ fn table(p: &mut Parts, rng: &mut R) {
 }
 
 fn door(p: &mut Parts, rng: &mut R) {
-    let (w, h) = (u(rng, 0.7, 0.9), u(rng, 1.05, 1.3));
+    // PartNet-Mobility doors at the paper's 0.55 scale: about half a metre wide.
+    let (w, h) = (u(rng, 0.45, 0.6), u(rng, 1.05, 1.3));
     let (cb, cp) = (color(rng), color(rng));
     let f = 0.06;
     let b = p.base(

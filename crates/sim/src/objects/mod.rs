@@ -115,11 +115,27 @@ fn instance_seed(dataset_seed: u64, category: Category, index: u32) -> u64 {
     dataset_seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (c << 40) ^ index as u64
 }
 
+/// The global scale the paper's code gives every PartNet-Mobility object.
+/// Generated files are written at PartNet's size (the scene size divided by
+/// it) with an `object_meta_info.json` that carries it, so they load, scale
+/// and score (prismatic values are divided by it) as PartNet objects do.
+pub const PARTNET_SCALE: f32 = 0.55;
+
+/// The pose of every generated object: upright as written, PartNet's scale.
+pub fn generated_pose() -> crate::scene::ObjectPose {
+    crate::scene::ObjectPose {
+        scale: PARTNET_SCALE,
+        ..Default::default()
+    }
+}
+
 /// Generates instance `index` of `category`; a pure function of its arguments.
 pub fn generate(category: Category, index: u32, dataset_seed: u64) -> GeneratedObject {
     let mut rng = ChaCha8Rng::seed_from_u64(instance_seed(dataset_seed, category, index));
     let test = instance_split(category, index) == InstanceSplit::Test;
-    let parts = families::build(category, &mut rng, test);
+    let mut parts = families::build(category, &mut rng, test);
+    // The families are designed at scene size; files are at PartNet's.
+    parts.scale(1.0 / PARTNET_SCALE);
     let meshes = parts
         .links
         .iter()
@@ -147,8 +163,13 @@ impl GeneratedObject {
             .join("mobility.urdf")
     }
 
-    /// Loads the object without touching the disk.
+    /// The object at scene size (the file scaled by [`PARTNET_SCALE`]).
     pub fn model(&self) -> Result<ObjectModel> {
+        self.file_model()?.scaled(PARTNET_SCALE)
+    }
+
+    /// The object as the file has it (PartNet's size), without touching the disk.
+    pub fn file_model(&self) -> Result<ObjectModel> {
         let dir = PathBuf::from(format!("generated/{}/{}", self.category.name(), self.index));
         let meshes: HashMap<PathBuf, &TriMesh> = self
             .meshes
@@ -174,6 +195,14 @@ impl GeneratedObject {
             std::fs::write(&p, mesh.to_obj()).map_err(|e| io(&p, e))?;
         }
         std::fs::write(&urdf, &self.urdf).map_err(|e| io(&urdf, e))?;
+        let pose = generated_pose();
+        let meta = serde_json::json!({
+            "orientation": pose.orientation,
+            "offset_z": pose.offset_z,
+            "scale": pose.scale,
+        });
+        let meta_path = dir.join("object_meta_info.json");
+        std::fs::write(&meta_path, meta.to_string()).map_err(|e| io(&meta_path, e))?;
         Ok(urdf)
     }
 }

@@ -1,0 +1,145 @@
+//! The `reference` profile's behaviours that the paper's simulator shows (the
+//! differential suite in tests/reference compares them with PyBullet itself).
+use std::sync::Arc;
+use umpnet_sim::math::{Pose3, Vec3};
+use umpnet_sim::physics::{Articulation, PhysicsConfig, PhysicsProfile};
+use umpnet_sim::urdf::{ObjectModel, parse_urdf};
+
+/// A cabinet with a door (0.8 m, hinged on the left, opens toward -y for
+/// positive values) and a drawer (0.4 m along -y); primitives only.
+const CABINET: &str = r#"<?xml version="1.0"?>
+<robot name="cabinet">
+  <link name="base"><visual><origin xyz="0 0 0.5"/><geometry><box size="0.8 0.5 1.0"/></geometry></visual></link>
+  <link name="door">
+    <inertial><origin xyz="0.4 -0.01 0"/><mass value="2"/><inertia ixx="0.14" ixy="0" ixz="0" iyy="0.24" iyz="0" izz="0.11"/></inertial>
+    <visual><origin xyz="0.4 -0.01 0"/><geometry><box size="0.8 0.02 0.45"/></geometry></visual>
+  </link>
+  <joint name="door_hinge" type="revolute">
+    <parent link="base"/><child link="door"/><origin xyz="-0.4 -0.25 0.75"/><axis xyz="0 0 -1"/>
+    <limit lower="0" upper="1.57" effort="100" velocity="1"/>
+  </joint>
+  <link name="drawer">
+    <inertial><origin xyz="0 0.2 0"/><mass value="3"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>
+    <visual><origin xyz="0 0.2 0"/><geometry><box size="0.7 0.4 0.3"/></geometry></visual>
+  </link>
+  <joint name="drawer_slide" type="prismatic">
+    <parent link="base"/><child link="drawer"/><origin xyz="0 -0.25 0.25"/><axis xyz="0 -1 0"/>
+    <limit lower="0" upper="0.4" effort="100" velocity="1"/>
+  </joint>
+</robot>"#;
+
+fn cabinet() -> (Arc<ObjectModel>, Articulation) {
+    let model = Arc::new(parse_urdf(CABINET, std::path::Path::new("cabinet.urdf")).unwrap());
+    let art = Articulation::new(
+        model.clone(),
+        Pose3::from_translation(Vec3::new(0.0, -0.5, 0.0)),
+        PhysicsConfig::with_profile(PhysicsProfile::Reference),
+    );
+    (model, art)
+}
+
+fn joint(model: &ObjectModel, name: &str) -> usize {
+    model.joint_by_name(name).unwrap()
+}
+
+fn link(model: &ObjectModel, name: &str) -> usize {
+    model.links.iter().position(|l| l.name == name).unwrap()
+}
+
+#[test]
+fn a_free_drawer_moves_0_13_m_per_action_and_loses_nothing_after_its_limit() {
+    let (m, mut art) = cabinet();
+    let j = joint(&m, "drawer_slide");
+    art.attach(Vec3::new(0.0, -0.76, 0.25), link(&m, "drawer"))
+        .unwrap();
+    let mut values = Vec::new();
+    for d in [-1.0f32, -1.0, -1.0, -1.0, 1.0, 1.0] {
+        let o = art.move_gripper(Vec3::new(0.0, d, 0.0), j).unwrap();
+        assert!(!o.suction_lost);
+        values.push(o.joint_after);
+    }
+    let expected = [0.130, 0.260, 0.390, 0.400, 0.270, 0.140];
+    for (v, e) in values.iter().zip(expected) {
+        assert!(
+            (v - e).abs() < 0.004,
+            "drawer {values:?}, PyBullet {expected:?}"
+        );
+    }
+}
+
+#[test]
+fn a_pull_across_the_doors_arc_stalls_and_one_along_it_opens_the_door() {
+    let (m, mut art) = cabinet();
+    let j = joint(&m, "door_hinge");
+    let door = link(&m, "door");
+    let edge = Vec3::new(0.35, -0.77, 0.75);
+    art.attach(edge, door).unwrap();
+    let mut last = 0.0;
+    for _ in 0..10 {
+        last = art
+            .move_gripper(Vec3::new(0.0, -1.0, 0.0), j)
+            .unwrap()
+            .joint_after;
+    }
+    // PyBullet: .175 .360 .569 then stalls at .573.
+    assert!((0.55..0.6).contains(&last), "door along -y ended at {last}");
+
+    art.set_joint_positions(&[0.0, 0.0]).unwrap();
+    art.attach(edge, door).unwrap();
+    let first = art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).unwrap();
+    assert!((first.joint_after - 0.175).abs() < 0.01);
+    for _ in 0..12 {
+        let (axis, origin) = art.joint_axis_in_world(j);
+        let point = art
+            .world_from_link(door)
+            .transform_point(Vec3::new(0.75, -0.02, 0.0));
+        let tangent = axis.cross(point - origin).normalize();
+        last = art.move_gripper(tangent, j).unwrap().joint_after;
+    }
+    assert!(last > 1.55, "door along its tangent ended at {last}");
+}
+
+#[test]
+fn a_grasp_next_to_the_hinge_cannot_turn_the_door() {
+    let (m, mut art) = cabinet();
+    let j = joint(&m, "door_hinge");
+    art.attach(Vec3::new(-0.35, -0.77, 0.75), link(&m, "door"))
+        .unwrap();
+    for d in [
+        Vec3::new(0.0, -1.0, 0.0),
+        Vec3::new(-1.0, -1.0, 0.0).normalize(),
+    ] {
+        let o = art.move_gripper(d, j).unwrap();
+        assert!(o.joint_after.abs() < 0.02, "moved to {}", o.joint_after);
+    }
+}
+
+#[test]
+fn the_same_actions_replay_bit_identically() {
+    let run = || {
+        let (m, mut art) = cabinet();
+        let j = joint(&m, "door_hinge");
+        art.attach(Vec3::new(0.3, -0.77, 0.7), link(&m, "door"))
+            .unwrap();
+        (0..5)
+            .map(|k| {
+                let d = Vec3::new((k as f32).sin(), -1.0, 0.3 * (k as f32).cos()).normalize();
+                art.move_gripper(d, j).unwrap().joint_after.to_bits()
+            })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(run(), run());
+}
+
+#[test]
+fn scaling_an_object_scales_its_geometry_and_slider_limits_like_pybullet() {
+    let (m, _) = cabinet();
+    let s = (*m).clone().scaled(0.55).unwrap();
+    let j = joint(&s, "drawer_slide");
+    assert!((s.joints[j].upper - 0.22).abs() < 1e-6);
+    let hinge = joint(&s, "door_hinge");
+    assert!((s.joints[hinge].upper - 1.57).abs() < 1e-6);
+    assert!((s.joints[hinge].parent_from_joint.translation.x + 0.22).abs() < 1e-6);
+    assert!((*m).clone().scaled(0.0).is_err());
+    assert!((*m).clone().scaled(f32::NAN).is_err());
+}
