@@ -102,7 +102,12 @@ pub fn run(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         return Err(usage("--episodes-per-category must be at least 1"));
     }
     let threads = a.threads.unwrap_or_else(rayon::current_num_threads).max(1);
-    let resolved = crate::policies::resolve(&a.policies, a.model.as_deref(), threads, a.task)?;
+    // The oracle is the ceiling of every table, under the same protocol and physics.
+    let mut listed = a.policies.clone();
+    if !listed.iter().any(|p| p == "oracle") {
+        listed.push("oracle".into());
+    }
+    let resolved = crate::policies::resolve(&listed, a.model.as_deref(), threads, a.task)?;
     let policies: Vec<(String, PolicyFactory)> = resolved.factories;
     let names: Vec<String> = policies.iter().map(|(n, _)| n.clone()).collect();
     let resolution = resolved.resolution.unwrap_or(a.resolution);
@@ -187,7 +192,7 @@ pub fn run(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
             "{} episodes ({} scenes x {} policies) in {wall:.1} s; {} failed",
             outcomes.len(),
             categories.len() as u32 * a.episodes_per_category,
-            a.policies.len(),
+            listed.len(),
             failures.len()
         );
         if let Some(out) = &a.out {
@@ -206,7 +211,7 @@ fn render_table(
     categories: &[Category],
     cells: &BTreeMap<(String, Category, &str), Vec<f64>>,
 ) -> String {
-    let mut s = String::new();
+    let mut s = String::from("(oracle: the ceiling, privileged policy under the same protocol)\n");
     let short = |c: &Category| c.name().chars().take(7).collect::<String>();
     let width = policies
         .iter()

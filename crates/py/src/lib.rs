@@ -48,6 +48,7 @@ fn make_config(
     object_dir: Option<PathBuf>,
     renderer: &str,
     dataset_seed: u64,
+    physics: &str,
 ) -> PyResult<EnvConfig> {
     let task: Task = task
         .parse()
@@ -67,6 +68,9 @@ fn make_config(
         )));
     }
     let mut cfg = EnvConfig::new(task, split);
+    cfg.physics = physics
+        .parse()
+        .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
     cfg.resolution = resolution;
     cfg.dataset_seed = dataset_seed;
     cfg.renderer = renderer
@@ -206,7 +210,7 @@ struct Env {
 #[pymethods]
 impl Env {
     #[new]
-    #[pyo3(signature = (category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0))]
+    #[pyo3(signature = (category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         category: Option<Vec<String>>,
@@ -217,6 +221,7 @@ impl Env {
         object_dir: Option<PathBuf>,
         renderer: &str,
         dataset_seed: u64,
+        physics: &str,
     ) -> PyResult<Self> {
         let cfg = make_config(
             category,
@@ -226,6 +231,7 @@ impl Env {
             object_dir,
             renderer,
             dataset_seed,
+            physics,
         )?;
         Ok(Self {
             inner: TrainEnv::new(cfg, seed).map_err(eval_err)?,
@@ -351,7 +357,7 @@ fn stack<'py>(
 #[pymethods]
 impl VecEnv {
     #[new]
-    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0))]
+    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         n: usize,
@@ -363,6 +369,7 @@ impl VecEnv {
         object_dir: Option<PathBuf>,
         renderer: &str,
         dataset_seed: u64,
+        physics: &str,
     ) -> PyResult<Self> {
         if n == 0 {
             return Err(PyValueError::new_err("n must be at least 1"));
@@ -375,6 +382,7 @@ impl VecEnv {
             object_dir,
             renderer,
             dataset_seed,
+            physics,
         )?;
         let envs = (0..n)
             .map(|i| TrainEnv::new(cfg.clone(), seed + i as u64))

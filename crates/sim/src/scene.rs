@@ -386,7 +386,12 @@ mod tests {
             goal: None,
             physics: PhysicsProfile::Ideal,
             pose: ObjectPose {
-                orientation: [0.0, 0.0, 0.7071068, 0.7071068],
+                orientation: [
+                    0.0,
+                    0.0,
+                    std::f32::consts::FRAC_1_SQRT_2,
+                    std::f32::consts::FRAC_1_SQRT_2,
+                ],
                 offset_z: 0.4,
                 scale: 0.55,
             },
