@@ -143,3 +143,26 @@ fn scaling_an_object_scales_its_geometry_and_slider_limits_like_pybullet() {
     assert!((*m).clone().scaled(0.0).is_err());
     assert!((*m).clone().scaled(f32::NAN).is_err());
 }
+
+#[test]
+fn the_ideal_profile_loses_no_motion_after_a_limit_either() {
+    let model = Arc::new(parse_urdf(CABINET, std::path::Path::new("cabinet.urdf")).unwrap());
+    let mut art = Articulation::new(
+        model.clone(),
+        Pose3::from_translation(Vec3::new(0.0, -0.5, 0.0)),
+        PhysicsConfig::with_profile(PhysicsProfile::Ideal),
+    );
+    let j = joint(&model, "drawer_slide");
+    art.attach(Vec3::new(0.0, -0.76, 0.25), link(&model, "drawer"))
+        .unwrap();
+    for _ in 0..4 {
+        art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).unwrap();
+    }
+    let back = art.move_gripper(Vec3::new(0.0, 1.0, 0.0), j).unwrap();
+    assert!((back.joint_before - 0.4).abs() < 0.005);
+    let moved = back.joint_before - back.joint_after;
+    assert!(
+        (moved - 0.18).abs() < 0.004,
+        "the first pull back moved {moved}"
+    );
+}

@@ -13,6 +13,7 @@ struct Gripper {
     target: RigidBodyHandle,
     suction: Option<ImpulseJointHandle>,
     link: usize,
+    point_in_link: Vec3,
 }
 
 /// One articulated object (fixed base) plus the gripper, in its own rapier world.
@@ -303,6 +304,7 @@ impl IdealArticulation {
             target,
             suction: Some(suction),
             link,
+            point_in_link,
         });
         Ok(())
     }
@@ -378,11 +380,23 @@ impl IdealArticulation {
             }
         }
         self.zero_velocities();
-        let end = self.bodies[body].translation();
-        // Quasi-static primitive: the set-point comes to rest at the gripper.
-        if let Some(t) = self.bodies.get_mut(target) {
-            t.set_translation(end, false);
-            t.set_next_kinematic_translation(end);
+        // Quasi-static primitive: the gripper and its set-point come to rest on
+        // the suction point (as the reference re-aligns its mount). Left where
+        // the drive's spring held them, a pull against a limit would cost the
+        // next action the stretch of that spring.
+        let end = match self.gripper.as_ref() {
+            Some(g) if g.suction.is_some() => self
+                .world_from_link(g.link)
+                .transform_point(g.point_in_link),
+            _ => self.bodies[body].translation(),
+        };
+        for h in [body, target] {
+            if let Some(b) = self.bodies.get_mut(h) {
+                b.set_translation(end, false);
+                if h == target {
+                    b.set_next_kinematic_translation(end);
+                }
+            }
         }
         Ok(ActionOutcome {
             joint_before,
