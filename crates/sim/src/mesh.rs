@@ -159,6 +159,46 @@ impl TriMesh {
         Self::parse_obj(&text, path)
     }
 
+    /// The diffuse colour (`Kd`) of the first material an OBJ file uses, from
+    /// the MTL file it names, as PyBullet's `URDF_USE_MATERIAL_COLORS_FROM_MTL`
+    /// reads it. None when the OBJ names no material or the MTL cannot be
+    /// read: colours are decoration, and the URDF's colour stands in.
+    pub fn obj_material_color(path: &Path) -> Option<[f32; 3]> {
+        let text = std::fs::read_to_string(path).ok()?;
+        let mut library = None;
+        let mut material = None;
+        for line in text.lines() {
+            let mut it = line.split_whitespace();
+            match it.next() {
+                Some("mtllib") if library.is_none() => library = it.next().map(str::to_owned),
+                Some("usemtl") if material.is_none() => material = it.next().map(str::to_owned),
+                _ => {}
+            }
+            if library.is_some() && material.is_some() {
+                break;
+            }
+        }
+        let mtl = std::fs::read_to_string(path.with_file_name(library?)).ok()?;
+        let material = material?;
+        let mut current = false;
+        for line in mtl.lines() {
+            let mut it = line.split_whitespace();
+            match it.next() {
+                Some("newmtl") => current = it.next() == Some(material.as_str()),
+                Some("Kd") if current => {
+                    let rgb: Vec<f32> = it.filter_map(|t| t.parse().ok()).collect();
+                    if let [r, g, b] = rgb[..]
+                        && [r, g, b].iter().all(|c| c.is_finite())
+                    {
+                        return Some([r, g, b].map(|c| c.clamp(0.0, 1.0)));
+                    }
+                }
+                _ => {}
+            }
+        }
+        None
+    }
+
     pub fn parse_obj(text: &str, path: &Path) -> Result<TriMesh> {
         let err = |line: usize, what: String| SimError::Mesh {
             file: path.to_path_buf(),

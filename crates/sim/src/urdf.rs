@@ -328,6 +328,19 @@ fn geometry_mesh(
     })
 }
 
+/// A mesh visual's colour from its OBJ's MTL file, as the paper's code loads
+/// PartNet-Mobility (PyBullet's `URDF_USE_MATERIAL_COLORS_FROM_MTL`): it takes
+/// precedence over the URDF's colour.
+fn mtl_color(g: &urdf_rs::Geometry, base_dir: &Path) -> Option<[f32; 3]> {
+    let urdf_rs::Geometry::Mesh { filename, .. } = g else {
+        return None;
+    };
+    let rel = filename
+        .trim_start_matches("package://")
+        .trim_start_matches("file://");
+    TriMesh::obj_material_color(&base_dir.join(rel))
+}
+
 fn material_color(m: &Option<urdf_rs::Material>, named: &HashMap<String, [f32; 3]>) -> [f32; 3] {
     const DEFAULT: [f32; 3] = [0.7, 0.7, 0.7];
     match m {
@@ -374,7 +387,8 @@ fn build_model(
                 .transformed(&pose_of(&v.origin));
             visuals.push(VisualModel {
                 mesh_in_link: mesh,
-                color: material_color(&v.material, &named_colors),
+                color: mtl_color(&v.geometry, base_dir)
+                    .unwrap_or_else(|| material_color(&v.material, &named_colors)),
             });
         }
         let (mass, com, inertia, derived) = if with_inertial.contains(&l.name) {
@@ -591,6 +605,45 @@ mod tests {
         parse_urdf(&wrap(body), Path::new("obj/mobility.urdf"))
             .unwrap_err()
             .to_string()
+    }
+
+    #[test]
+    fn mesh_colours_come_from_the_mtl_file_as_pybullet_loads_partnet() {
+        let dir = tempfile::tempdir().unwrap();
+        let objs = dir.path().join("textured_objs");
+        std::fs::create_dir_all(&objs).unwrap();
+        std::fs::write(
+            objs.join("part.obj"),
+            "mtllib part.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        std::fs::write(
+            objs.join("part.mtl"),
+            "newmtl other\nKd 0 0 1\nnewmtl paint\nKa 1 1 1\nKd 0.8 0.2 0.1\n",
+        )
+        .unwrap();
+        std::fs::write(
+            objs.join("plain.obj"),
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        let urdf = dir.path().join("mobility.urdf");
+        std::fs::write(
+            &urdf,
+            wrap(
+                r#"<link name="base">
+                 <visual><geometry><mesh filename="textured_objs/part.obj"/></geometry>
+                   <material name="m"><color rgba="0 1 0 1"/></material></visual>
+                 <visual><geometry><mesh filename="textured_objs/plain.obj"/></geometry>
+                   <material name="m2"><color rgba="0 1 0 1"/></material></visual>
+               </link>"#,
+            ),
+        )
+        .unwrap();
+        let m = load_urdf(&urdf).unwrap();
+        assert_eq!(m.links[0].visuals[0].color, [0.8, 0.2, 0.1]);
+        // No material in the OBJ: the URDF's colour.
+        assert_eq!(m.links[0].visuals[1].color, [0.0, 1.0, 0.0]);
     }
 
     #[test]
