@@ -23,6 +23,7 @@ class Config:
     num_envs: int = 64
     replay_size: int = 6400
     categories: list[str] = field(default_factory=list)  # empty: the 12 training categories
+    physics: str = "reference"  # the paper's simulator; "ideal": every pull follows the joint's path
     # Epsilon-greedy schedules (linear decay over `*_decay_epochs`)
     position_epsilon: tuple[float, float] = (1.0, 0.1)
     position_decay_epochs: int = 300

@@ -230,6 +230,7 @@ def parse_args(argv=None):
     p.add_argument("--threads", type=int)
     p.add_argument("--eval-every", type=int, help="epochs between `umpnet eval` runs (0: never)")
     p.add_argument("--renderer", choices=["auto", "wgpu", "cpu"])
+    p.add_argument("--physics", choices=["reference", "ideal"], help="physics profile of the environments")
     p.add_argument("--device", help="auto, cpu or cuda")
     p.add_argument("--direction-widths", help="DirectionNet U-Net widths per level, e.g. 8,16,32,64")
     p.add_argument(
@@ -253,6 +254,7 @@ def parse_args(argv=None):
         threads=a.threads,
         eval_every=a.eval_every,
         renderer=a.renderer,
+        physics=a.physics,
         device=a.device,
         save_replay=a.save_replay,
         direction_widths=_widths(p, a.direction_widths),
@@ -269,7 +271,7 @@ def evaluate(model, cfg, out: Path, umpnet_bin: str, writer, epoch: int):
     for task in ["exploration", "goal"]:
         res = subprocess.run(
             [umpnet_bin, "--json", "eval", "--task", task, "--split", "train", "--episodes-per-category", "5",
-             "--policies", f"umpnet={package}"],
+             "--policies", f"umpnet={package}", "--physics", cfg.physics],
             capture_output=True, text=True, check=False,
         )  # fmt: skip
         if res.returncode != 0:
@@ -326,6 +328,7 @@ def main(argv=None) -> int:
         seed=cfg.seed * 1000 + start,
         resolution=(cfg.height, cfg.width),
         renderer=cfg.renderer,
+        physics=cfg.physics,
     )
     replay = Replay(cfg.replay_size, (cfg.height, cfg.width, 10))
     replay_path = out / "replay.npz"
@@ -355,7 +358,7 @@ def main(argv=None) -> int:
             "epochs": epoch,
             "wall_seconds": wall,
             "simulation_share": stats["sim_s"] / max(stats["sim_s"] + stats["learn_s"], 1e-9),
-            "trained_on": {"categories": categories, "split": "train instances"},
+            "trained_on": {"categories": categories, "split": "train instances", "physics": cfg.physics},
             "torch": torch.__version__,
         }
 

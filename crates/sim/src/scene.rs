@@ -332,13 +332,14 @@ pub fn sample_scene(
             } else {
                 (-1.5, 1.5)
             };
-            // The goal sits at a limit; the start at most as far from it as the
-            // category's budget of free pulls can cover with this part's lever
-            // (the reference moves a free grasp point about 0.13 m per action),
+            // The goal sits at a limit; the start at most 70% as far from it as
+            // the category's budget of free pulls can cover with this part's
+            // lever (the reference moves a free grasp point about 0.13 m per
+            // action; a grasp short of the farthest point moves the part less),
             // and at least half of that.
             let budget = category.map_or(GOAL_STEPS, |c| c.step_budget());
             let per_step = FREE_PULL / joint_lever(model, j).max(FREE_PULL);
-            let reach = (hi - lo).min(0.8 * budget as f32 * per_step);
+            let reach = (hi - lo).min(0.7 * budget as f32 * per_step);
             let gap = reach * rng.random_range(0.5f32..=1.0);
             let (goal_v, init_v) = if rng.random_bool(0.5) {
                 (hi, hi - gap)
