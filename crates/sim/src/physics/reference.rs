@@ -111,6 +111,8 @@ struct Row {
     /// Inverse mass times the Jacobian: the velocity change per unit impulse.
     response: Sparse,
     effective_mass: f64,
+    /// Its inverse: the row's own speed change per unit impulse.
+    compliance: f64,
     target: f64,
     lower: f64,
     upper: f64,
@@ -444,6 +446,7 @@ impl ReferenceArticulation {
                     jacobian: Sparse::from_dense(&jacobian),
                     response: Sparse::from_dense(&response),
                     effective_mass: 1.0 / d,
+                    compliance: d,
                     target,
                     lower,
                     upper,
@@ -526,7 +529,10 @@ impl ReferenceArticulation {
                 if change != 0.0 {
                     r.impulse = next;
                     r.response.add_scaled_to(&mut x, change);
-                    largest = largest.max((change / r.effective_mass).abs());
+                    let speed_change = (change * r.compliance).abs();
+                    if speed_change > largest {
+                        largest = speed_change;
+                    }
                 }
             }
             // Converged: a further sweep would change no speed measurably, so
