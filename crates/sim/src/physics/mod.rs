@@ -14,6 +14,7 @@
 //! joint limits, the suction joint and the gripper drive.
 mod ideal;
 mod kinematics;
+mod pgs;
 mod reference;
 
 use crate::error::Result;

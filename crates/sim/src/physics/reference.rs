@@ -25,6 +25,7 @@
 //! gains and bounds are rescaled so a free pull follows the same exponential
 //! approach.
 use super::kinematics::{forward_kinematics, joint_motion, movable_chain, moved_links};
+use super::pgs::{MAX_DOFS, Row, invert, solve};
 use super::{ActionOutcome, PhysicsConfig};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3};
@@ -101,61 +102,7 @@ struct Mount {
 
 /// At most this many movable joints above the grasped link carry load; the
 /// ones farther up stay still (no generated or PartNet object has more).
-pub const MAX_CHAIN: usize = 5;
-const MAX_DOFS: usize = MAX_CHAIN + 3;
-
-/// One constraint row over the chain's joint velocities and the mount velocity.
-#[derive(Clone, Copy, Default)]
-struct Row {
-    jacobian: Sparse,
-    /// Inverse mass times the Jacobian: the velocity change per unit impulse.
-    response: Sparse,
-    effective_mass: f64,
-    /// Its inverse: the row's own speed change per unit impulse.
-    compliance: f64,
-    target: f64,
-    lower: f64,
-    upper: f64,
-    impulse: f64,
-}
-
-/// A row vector's non-zero entries: most rows touch one or two velocities,
-/// and the solver's sweeps are its whole cost.
-#[derive(Clone, Copy, Default)]
-struct Sparse {
-    index: [u8; MAX_DOFS],
-    value: [f64; MAX_DOFS],
-    len: usize,
-}
-
-impl Sparse {
-    fn from_dense(dense: &[f64; MAX_DOFS]) -> Self {
-        let mut s = Sparse::default();
-        for (i, &v) in dense.iter().enumerate() {
-            if v != 0.0 {
-                s.index[s.len] = i as u8;
-                s.value[s.len] = v;
-                s.len += 1;
-            }
-        }
-        s
-    }
-    #[inline(always)]
-    fn dot(&self, x: &[f64; MAX_DOFS]) -> f64 {
-        let at = |k: usize| self.value[k] * x[self.index[k] as usize & (MAX_DOFS - 1)];
-        match self.len {
-            1 => at(0),
-            2 => at(0) + at(1),
-            n => (0..n).map(at).sum(),
-        }
-    }
-    #[inline(always)]
-    fn add_scaled_to(&self, x: &mut [f64; MAX_DOFS], scale: f64) {
-        for k in 0..self.len {
-            x[self.index[k] as usize & (MAX_DOFS - 1)] += self.value[k] * scale;
-        }
-    }
-}
+pub const MAX_CHAIN: usize = MAX_DOFS - 3;
 
 pub(crate) struct ReferenceArticulation {
     model: Arc<ObjectModel>,
@@ -440,19 +387,7 @@ impl ReferenceArticulation {
             for i in 0..3 {
                 response[n + i] = jacobian[n + i] / mount_mass;
             }
-            let d: f64 = jacobian.iter().zip(&response).map(|(a, b)| a * b).sum();
-            if d > 1e-12 {
-                rows.push(Row {
-                    jacobian: Sparse::from_dense(&jacobian),
-                    response: Sparse::from_dense(&response),
-                    effective_mass: 1.0 / d,
-                    compliance: d,
-                    target,
-                    lower,
-                    upper,
-                    impulse: 0.0,
-                });
-            }
+            rows.extend(Row::new(&jacobian, &response, target, lower, upper));
         };
         let unit = |i: usize, sign: f64| {
             let mut j = [0.0; MAX_DOFS];
@@ -516,31 +451,7 @@ impl ReferenceArticulation {
             push(unit(a, 1.0), 0.0, -brake, brake);
         }
 
-        let sweeps = self.params.solver_iterations.max(1);
-        let count = rows.len();
-        for sweep in 0..sweeps {
-            let backward = sweep % 2 == 0;
-            let mut largest = 0.0f64;
-            for i in 0..count {
-                let r = &mut rows[if backward { count - 1 - i } else { i }];
-                let jv = r.jacobian.dot(&x);
-                let next = (r.impulse + (r.target - jv) * r.effective_mass).clamp(r.lower, r.upper);
-                let change = next - r.impulse;
-                if change != 0.0 {
-                    r.impulse = next;
-                    r.response.add_scaled_to(&mut x, change);
-                    let speed_change = (change * r.compliance).abs();
-                    if speed_change > largest {
-                        largest = speed_change;
-                    }
-                }
-            }
-            // Converged: a further sweep would change no speed measurably, so
-            // stopping early gives Bullet's answer.
-            if largest < 1e-7 {
-                break;
-            }
-        }
+        solve(&mut rows, &mut x, self.params.solver_iterations);
         self.rows = rows;
 
         let max_speed = self.params.max_joint_speed as f64;
@@ -570,60 +481,5 @@ impl ReferenceArticulation {
                 * joint.parent_from_joint
                 * joint_motion(joint.kind, joint.axis_in_joint, self.q[j]);
         }
-    }
-}
-
-/// Inverse of a small symmetric positive definite matrix (Gauss-Jordan with
-/// partial pivoting); None when singular.
-fn invert(m: &[f64], n: usize) -> Option<Vec<f64>> {
-    let mut a = m.to_vec();
-    let mut inv = vec![0.0; n * n];
-    for i in 0..n {
-        inv[i * n + i] = 1.0;
-    }
-    for c in 0..n {
-        let p = (c..n).max_by(|&r, &s| a[r * n + c].abs().total_cmp(&a[s * n + c].abs()))?;
-        if a[p * n + c].abs() < 1e-15 {
-            return None;
-        }
-        for k in 0..n {
-            a.swap(c * n + k, p * n + k);
-            inv.swap(c * n + k, p * n + k);
-        }
-        let d = a[c * n + c];
-        for k in 0..n {
-            a[c * n + k] /= d;
-            inv[c * n + k] /= d;
-        }
-        for r in 0..n {
-            if r != c {
-                let f = a[r * n + c];
-                if f != 0.0 {
-                    for k in 0..n {
-                        a[r * n + k] -= f * a[c * n + k];
-                        inv[r * n + k] -= f * inv[c * n + k];
-                    }
-                }
-            }
-        }
-    }
-    Some(inv)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::invert;
-
-    #[test]
-    fn invert_gives_the_inverse() {
-        let m = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
-        let inv = invert(&m, 3).expect("invertible");
-        for r in 0..3 {
-            for c in 0..3 {
-                let v: f64 = (0..3).map(|k| m[r * 3 + k] * inv[k * 3 + c]).sum();
-                assert!((v - if r == c { 1.0 } else { 0.0 }).abs() < 1e-12);
-            }
-        }
-        assert!(invert(&[1.0, 2.0, 2.0, 4.0], 2).is_none());
     }
 }
