@@ -69,6 +69,10 @@ pub struct PositionInfo {
     pub link: Option<usize>,
     pub joint: Option<usize>,
     pub point_in_world: Option<[f32; 3]>,
+    /// The grasped joint's limits and the paper protocol's closeness
+    /// threshold for it (see `protocol::threshold`).
+    pub limits: Option<[f32; 2]>,
+    pub threshold: Option<f32>,
 }
 
 pub enum ScriptedAction {
@@ -254,12 +258,21 @@ impl TrainEnv {
                 link,
                 joint,
                 ..
-            } => PositionInfo {
-                valid,
-                link: Some(link),
-                joint: Some(joint),
-                point_in_world: Some(point_in_world.to_array()),
-            },
+            } => {
+                let jm = &env.model().joints[joint];
+                PositionInfo {
+                    valid,
+                    link: Some(link),
+                    joint: Some(joint),
+                    point_in_world: Some(point_in_world.to_array()),
+                    limits: Some([jm.lower, jm.upper]),
+                    threshold: Some(crate::protocol::threshold(
+                        jm.kind.is_prismatic(),
+                        jm.lower,
+                        jm.upper,
+                    )),
+                }
+            }
             Pick::NoMovableLink => PositionInfo::default(),
         };
         let frame = env.render()?;

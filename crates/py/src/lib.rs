@@ -174,6 +174,8 @@ fn position_info<'py>(py: Python<'py>, i: &PositionInfo) -> PyResult<Bound<'py, 
     d.set_item("link", i.link)?;
     d.set_item("joint", i.joint)?;
     d.set_item("point_in_world", i.point_in_world.map(|p| p.to_vec()))?;
+    d.set_item("limits", i.limits.map(|l| l.to_vec()))?;
+    d.set_item("threshold", i.threshold)?;
     Ok(d)
 }
 

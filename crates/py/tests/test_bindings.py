@@ -196,3 +196,56 @@ def test_articulation_reports_bad_input_by_name(tmp_path):
         umpnet.Articulation(urdf, steps_per_update=0)
     with pytest.raises(ValueError, match="scale"):
         umpnet.Articulation(urdf, scale=-1.0)
+
+
+def _gym_returns(env_id, policy, episodes=6):
+    gym = pytest.importorskip("gymnasium")
+    import umpnet.gym  # noqa: F401  (registers the ids)
+
+    env = gym.make(env_id, resolution=RES, category=["Door", "StorageFurniture", "Microwave"])
+    rng = np.random.default_rng(0)
+    returns, successes = [], []
+    for k in range(episodes):
+        env.reset(seed=k)
+        total, done, info = 0.0, False, {}
+        inner = env.unwrapped._env
+        while not done:
+            phase = env.unwrapped._phase
+            if policy == "oracle":
+                a = inner.scripted_action("oracle")
+                if a is None:
+                    break
+            else:
+                a = inner.scripted_action("random") if phase == 0 else rng.normal(size=3)
+            action = {"phase": phase, "pixel": np.zeros(2, dtype=np.int64), "direction": np.zeros(3, dtype=np.float32)}
+            if phase == 0:
+                action["pixel"] = np.array(a)
+            else:
+                action["direction"] = np.asarray(a, dtype=np.float32)
+            _, reward, terminated, truncated, info = env.step(action)
+            total += reward
+            done = terminated or truncated
+        returns.append(total)
+        successes.append(bool(info.get("success")))
+    return np.mean(returns), np.mean(successes)
+
+
+@pytest.mark.parametrize("env_id", ["umpnet/Goal-v0", "umpnet/Explore-v0"])
+def test_gym_rewards_pay_the_oracle_and_not_random(env_id):
+    oracle, oracle_success = _gym_returns(env_id, "oracle")
+    random, _ = _gym_returns(env_id, "random")
+    assert oracle > 1.0, oracle
+    assert oracle > random + 1.0, (oracle, random)
+    if env_id == "umpnet/Goal-v0":
+        assert oracle_success >= 0.8
+
+
+def test_gym_budget_and_info():
+    gym = pytest.importorskip("gymnasium")
+    import umpnet.gym  # noqa: F401
+
+    env = gym.make("umpnet/Explore-v0", resolution=RES, category=["Kettle"])
+    assert env.spec.max_episode_steps == 16
+    _, info = env.reset(seed=1)
+    assert info["success"] is False and info["elapsed_steps"] == 0
+    assert env.unwrapped._budget() == 3  # the paper's budget for a Kettle
