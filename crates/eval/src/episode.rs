@@ -160,6 +160,7 @@ pub fn run_episode(
         &steps,
         budget,
         protocol,
+        ended_by_protocol,
     );
     Ok(Episode {
         policy: policy.name(),
@@ -201,6 +202,7 @@ fn metrics(
     steps: &[Step],
     budget: usize,
     protocol: Protocol,
+    ended_by_protocol: bool,
 ) -> Metrics {
     let mut m = Metrics::default();
     let after: Vec<f32> = steps.iter().map(|s| s.record.labels.joint_after).collect();
@@ -216,12 +218,11 @@ fn metrics(
                 .unwrap_or_else(|| env.articulation().joint_position(j));
             // Steps the protocol scores: the paper stops at a limit; a policy
             // that stopped leaves the state as it was for the rest.
-            let ended = steps.last().is_some_and(|_| after.len() < budget)
-                && protocol == Protocol::Paper
-                && steps
-                    .last()
-                    .is_some_and(|s| paper_episode_over(scene, env, j, s));
-            let scored = if ended { after.len() } else { budget };
+            let scored = if ended_by_protocol {
+                after.len()
+            } else {
+                budget
+            };
             let value_at = |t: usize| after.get(t).or(after.last()).copied().unwrap_or(start);
             m.single_action_effect = steps
                 .iter()
@@ -275,11 +276,7 @@ fn metrics(
             };
             let (init, target) = (scene.joints[g.joint], g.joints[g.joint]);
             let dist = |v: f32| -> f32 { (v - target).abs() / (target - init).abs().max(1e-6) };
-            let reached = protocol == Protocol::Paper
-                && joint.is_some()
-                && steps
-                    .last()
-                    .is_some_and(|s| paper_episode_over(scene, env, g.joint, s));
+            let reached = ended_by_protocol && joint.is_some();
             let mut last = 1.0;
             for t in 0..budget {
                 if joint.is_some()
