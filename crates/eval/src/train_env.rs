@@ -281,6 +281,20 @@ impl TrainEnv {
         Ok((obs, info))
     }
 
+    /// Dense labels of `directions` from the current state, which stays as it
+    /// is (see `SimEnv::probe_directions`).
+    pub fn probe_directions(&self, directions: &[[f32; 3]]) -> Result<Vec<StepLabels>> {
+        let env = self
+            .env
+            .as_ref()
+            .ok_or_else(|| EvalError::Episode("probe_directions before reset()".into()))?;
+        let dirs: Vec<umpnet_sim::math::Vec3> = directions
+            .iter()
+            .map(|d| umpnet_sim::math::Vec3::from(*d))
+            .collect();
+        Ok(env.probe_directions(&dirs)?)
+    }
+
     pub fn step_direction(&mut self, direction: [f32; 3]) -> Result<(EnvObservation, StepLabels)> {
         let env = self
             .env

@@ -24,7 +24,7 @@ fn runtime_err(e: impl std::fmt::Display) -> PyErr {
     PyRuntimeError::new_err(e.to_string())
 }
 
-fn eval_err(e: EvalError) -> PyErr {
+pub(crate) fn eval_err(e: EvalError) -> PyErr {
     match e {
         EvalError::Sim(umpnet_sim::SimError::InvalidAction(m)) => PyValueError::new_err(m),
         EvalError::Sim(umpnet_sim::SimError::InvalidScene(m)) => PyValueError::new_err(m),
@@ -299,6 +299,32 @@ impl Env {
         ))
     }
 
+    /// Dense labels: what each of `directions` (float32, k x 3) would do from
+    /// the current state, which stays as it is. Returns arrays of length k:
+    /// r_dist, aot, moved, joint_after.
+    fn probe_directions<'py>(
+        &self,
+        py: Python<'py>,
+        directions: PyReadonlyArray2<'py, f32>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let dirs = vec![probe::directions_2d(&directions)?];
+        let k = dirs[0].len();
+        let labels = probe::probe_all(py, std::slice::from_ref(&self.inner), &dirs)?;
+        if labels.first().is_none_or(|l| l.is_none()) {
+            return Err(PyValueError::new_err(
+                "probe_directions before a valid position action",
+            ));
+        }
+        let out = probe::labels_dict(py, &labels, k)?;
+        let flat = PyDict::new(py);
+        for key in ["r_dist", "joint_after", "aot", "moved"] {
+            if let Some(v) = out.get_item(key)? {
+                flat.set_item(key, v.call_method1("reshape", (k,))?)?;
+            }
+        }
+        Ok(flat)
+    }
+
     /// The action `oracle` or `random` would take now: (row, col) before the
     /// grasp, a direction after, None when the policy stops.
     fn scripted_action(&mut self, py: Python<'_>, policy: &str) -> PyResult<Py<PyAny>> {
@@ -560,6 +586,21 @@ impl VecEnv {
         Ok((stack(py, &obs, &refs)?, labels, info))
     }
 
+    /// Dense labels for every environment: `directions` is float32 (n, k, 3);
+    /// returns (n, k) arrays r_dist, aot, moved, joint_after and `active` (n,),
+    /// False where an environment holds no grasp (its labels are zero). The
+    /// environments' states do not change.
+    fn probe_directions<'py>(
+        &self,
+        py: Python<'py>,
+        directions: numpy::PyReadonlyArray3<'py, f32>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let dirs = probe::directions(&directions, self.envs.len())?;
+        let k = directions.shape()[1];
+        let labels = probe::probe_all(py, &self.envs, &dirs)?;
+        probe::labels_dict(py, &labels, k)
+    }
+
     /// Scripted actions for every environment (see Env.scripted_action).
     fn scripted_actions(&mut self, py: Python<'_>, policy: &str) -> PyResult<Vec<Py<PyAny>>> {
         let mut out = Vec::with_capacity(self.envs.len());
@@ -710,6 +751,7 @@ fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
 }
 
 mod physics;
+mod probe;
 
 #[pymodule]
 fn _umpnet(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -249,3 +249,25 @@ def test_gym_budget_and_info():
     _, info = env.reset(seed=1)
     assert info["success"] is False and info["elapsed_steps"] == 0
     assert env.unwrapped._budget() == 3  # the paper's budget for a Kettle
+
+
+def test_probe_directions_gives_dense_labels_without_changing_the_episode():
+    vec = umpnet.VecEnv(3, category=["Microwave", "StorageFurniture"], resolution=RES, seed=5)
+    vec.reset()
+    vec.step_position(np.array(vec.scripted_actions("oracle")))
+    dirs = np.random.default_rng(0).normal(size=(3, 16, 3)).astype(np.float32)
+    dirs[:, 0] = np.array(vec.scripted_actions("oracle"), dtype=np.float32)
+    first = vec.probe_directions(dirs)
+    again = vec.probe_directions(dirs)
+    for key in ["r_dist", "aot", "moved", "joint_after"]:
+        assert first[key].shape == (3, 16)
+        np.testing.assert_array_equal(first[key], again[key])
+    # The oracle's own direction moves the part. Probing it predicts the step
+    # exactly, which also shows the probes left the state as it was.
+    assert (first["r_dist"][:, 0] > 0.05).all(), first["r_dist"][:, 0]
+    _, labels, _ = vec.step_direction(dirs[:, 0])
+    np.testing.assert_array_equal(labels["r_dist"], first["r_dist"][:, 0])
+    with pytest.raises(ValueError, match=r"expected \(3, K, 3\)"):
+        vec.probe_directions(np.zeros((2, 4, 3), dtype=np.float32))
+    with pytest.raises(ValueError, match="non-zero"):
+        vec.probe_directions(np.zeros((3, 4, 3), dtype=np.float32))

@@ -305,6 +305,40 @@ impl SimEnv {
     }
 }
 
+impl SimEnv {
+    /// Dense labels: what each of `directions` would do from the current
+    /// state, each simulated on a copy of the articulation, so the episode
+    /// itself is not disturbed. The same state gives the same labels.
+    pub fn probe_directions(&self, directions: &[Vec3]) -> Result<Vec<StepLabels>> {
+        let Some(g) = self.grasp.as_ref() else {
+            return Err(SimError::InvalidAction(
+                "probe_directions before a position action".into(),
+            ));
+        };
+        let jm = &self.model.joints[g.joint];
+        directions
+            .iter()
+            .map(|d| {
+                if !d.is_finite() || d.length() < 1e-6 {
+                    return Err(SimError::InvalidAction(format!(
+                        "direction {d} must be finite and non-zero"
+                    )));
+                }
+                let mut art = self.art.duplicate();
+                let out = art.move_gripper(d.normalize(), g.joint)?;
+                Ok(labels(
+                    out.joint_before,
+                    out.joint_after,
+                    g.j0,
+                    jm.lower,
+                    jm.upper,
+                    out.suction_lost,
+                ))
+            })
+            .collect()
+    }
+}
+
 /// The paper's labels for one action (pure function, tested on its own).
 pub fn labels(
     before: f32,

@@ -286,7 +286,8 @@ fn sample_joint_value(rng: &mut impl Rng, lower: f32, upper: f32) -> f32 {
     }
 }
 
-/// Samples a scene for `model`: placement and joint state as the protocol says.
+/// Samples a scene for `model` (the object as the scene loads it: scaled by
+/// the pose its source gives): placement and joint state as the protocol says.
 /// `goal_joints` restricts which joints a goal may be set on (e.g. visible ones).
 pub fn sample_scene(
     rng: &mut impl Rng,
@@ -296,6 +297,7 @@ pub fn sample_scene(
     model: &ObjectModel,
     goal_joints: Option<&[usize]>,
 ) -> Result<Scene> {
+    let object_pose = object.pose()?;
     let base_xy = [
         rng.random_range(-0.05..0.05),
         -0.5 + rng.random_range(-0.05..0.05),
@@ -364,7 +366,7 @@ pub fn sample_scene(
         joints,
         goal,
         physics: PhysicsProfile::default(),
-        pose: ObjectPose::default(),
+        pose: object_pose,
     })
 }
 

@@ -8,6 +8,7 @@ use crate::urdf::{JointKind, ObjectModel};
 use rapier3d::prelude::*;
 use std::sync::Arc;
 
+#[derive(Clone)]
 struct Gripper {
     body: RigidBodyHandle,
     target: RigidBodyHandle,
@@ -157,6 +158,29 @@ impl IdealArticulation {
             // `true`: the fixed root takes the base pose from its rigid body.
             mb.forward_kinematics(&self.bodies, true);
             mb.update_rigid_bodies(&mut self.bodies, true);
+        }
+    }
+
+    /// An independent copy of the whole world (the pipeline's scratch state
+    /// is made anew).
+    pub(crate) fn duplicate(&self) -> Self {
+        Self {
+            model: self.model.clone(),
+            config: self.config.clone(),
+            bodies: self.bodies.clone(),
+            colliders: self.colliders.clone(),
+            impulse_joints: self.impulse_joints.clone(),
+            multibody_joints: self.multibody_joints.clone(),
+            soft_bodies: self.soft_bodies.clone(),
+            islands: self.islands.clone(),
+            broad_phase: self.broad_phase.clone(),
+            narrow_phase: self.narrow_phase.clone(),
+            ccd: self.ccd.clone(),
+            pipeline: PhysicsPipeline::new(),
+            params: self.params,
+            link_bodies: self.link_bodies.clone(),
+            joint_handles: self.joint_handles.clone(),
+            gripper: self.gripper.clone(),
         }
     }
 

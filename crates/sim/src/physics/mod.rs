@@ -282,6 +282,21 @@ impl Articulation {
         dispatch!(mut self, b => b.release())
     }
 
+    /// An independent copy in the same state: what a probe acts on so that
+    /// the original is not disturbed.
+    pub fn duplicate(&self) -> Self {
+        let backend = match &self.backend {
+            Backend::Ideal(b) => Backend::Ideal(Box::new(b.duplicate())),
+            Backend::Reference(b) => Backend::Reference(b.clone()),
+        };
+        Self {
+            model: self.model.clone(),
+            config: self.config.clone(),
+            world_from_base: self.world_from_base,
+            backend,
+        }
+    }
+
     /// Moves the gripper `action_length` along `direction` (unit, world frame)
     /// as the profile defines; `joint` is the joint whose value is reported.
     pub fn move_gripper(&mut self, direction: Vec3, joint: usize) -> Result<ActionOutcome> {

@@ -85,6 +85,7 @@ impl Default for ReferenceParams {
     }
 }
 
+#[derive(Clone)]
 struct Suction {
     link: usize,
     point_in_link: Vec3,
@@ -94,6 +95,7 @@ struct Suction {
     moved: Vec<Vec<usize>>,
 }
 
+#[derive(Clone)]
 struct Mount {
     position: Vec3,
     velocity: Vec3,
@@ -104,6 +106,7 @@ struct Mount {
 /// ones farther up stay still (no generated or PartNet object has more).
 pub const MAX_CHAIN: usize = MAX_DOFS - 3;
 
+#[derive(Clone)]
 pub(crate) struct ReferenceArticulation {
     model: Arc<ObjectModel>,
     params: ReferenceParams,

@@ -1,0 +1,119 @@
+//! Dense labels for Python: `Env.probe_directions` and `VecEnv.probe_directions`
+//! simulate candidate directions from the current state without changing it.
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+use umpnet_eval::train_env::TrainEnv;
+use umpnet_sim::env::StepLabels;
+
+fn checked(d: [f32; 3], at: &str) -> PyResult<[f32; 3]> {
+    let norm = d.iter().map(|x| x * x).sum::<f32>().sqrt();
+    if norm.is_finite() && norm > 1e-6 {
+        Ok(d)
+    } else {
+        Err(PyValueError::new_err(format!(
+            "directions[{at}] = {d:?}: expected a finite, non-zero vector"
+        )))
+    }
+}
+
+/// The (k, 3) array as k finite, non-zero directions.
+pub(crate) fn directions_2d(a: &PyReadonlyArray2<'_, f32>) -> PyResult<Vec<[f32; 3]>> {
+    let s = a.shape();
+    if s.len() != 2 || s[1] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "directions has shape {s:?}, expected (K, 3) float32"
+        )));
+    }
+    let v = a.as_array();
+    (0..s[0])
+        .map(|k| checked([v[[k, 0]], v[[k, 1]], v[[k, 2]]], &k.to_string()))
+        .collect()
+}
+
+/// The (n, k, 3) array as n lists of k finite, non-zero directions.
+pub(crate) fn directions(a: &PyReadonlyArray3<'_, f32>, n: usize) -> PyResult<Vec<Vec<[f32; 3]>>> {
+    let s = a.shape();
+    if s.len() != 3 || s[0] != n || s[2] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "directions has shape {s:?}, expected ({n}, K, 3) float32"
+        )));
+    }
+    let v = a.as_array();
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let mut row = Vec::with_capacity(s[1]);
+        for k in 0..s[1] {
+            row.push(checked(
+                [v[[i, k, 0]], v[[i, k, 1]], v[[i, k, 2]]],
+                &format!("{i}, {k}"),
+            )?);
+        }
+        out.push(row);
+    }
+    Ok(out)
+}
+
+/// Probes every environment (in parallel, without the GIL); an environment
+/// without a grasp gives None.
+pub(crate) fn probe_all(
+    py: Python<'_>,
+    envs: &[TrainEnv],
+    dirs: &[Vec<[f32; 3]>],
+) -> PyResult<Vec<Option<Vec<StepLabels>>>> {
+    py.detach(|| {
+        envs.par_iter()
+            .zip(dirs)
+            .map(|(e, d)| {
+                if e.grasped_joint().is_some() {
+                    e.probe_directions(d).map(Some)
+                } else {
+                    Ok(None)
+                }
+            })
+            .collect::<Result<Vec<_>, _>>()
+    })
+    .map_err(crate::eval_err)
+}
+
+/// Labels as (n, k) arrays: r_dist, aot, moved, joint_after; `active` (n,)
+/// says which environments held a grasp.
+pub(crate) fn labels_dict<'py>(
+    py: Python<'py>,
+    labels: &[Option<Vec<StepLabels>>],
+    k: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let n = labels.len();
+    let cell = |f: &dyn Fn(&StepLabels) -> f32| -> Vec<f32> {
+        labels
+            .iter()
+            .flat_map(|l| match l {
+                Some(v) => v.iter().map(f).collect::<Vec<_>>(),
+                None => vec![0.0; k],
+            })
+            .collect()
+    };
+    let d = PyDict::new(py);
+    d.set_item(
+        "r_dist",
+        PyArray1::from_vec(py, cell(&|l| l.r_dist)).reshape([n, k])?,
+    )?;
+    d.set_item(
+        "joint_after",
+        PyArray1::from_vec(py, cell(&|l| l.joint_after)).reshape([n, k])?,
+    )?;
+    let aot: Vec<i64> = cell(&|l| l.aot as f32).iter().map(|&a| a as i64).collect();
+    d.set_item("aot", PyArray1::from_vec(py, aot).reshape([n, k])?)?;
+    let moved: Vec<bool> = cell(&|l| l.moved as u8 as f32)
+        .iter()
+        .map(|&m| m > 0.5)
+        .collect();
+    d.set_item("moved", PyArray1::from_vec(py, moved).reshape([n, k])?)?;
+    d.set_item(
+        "active",
+        labels.iter().map(|l| l.is_some()).collect::<Vec<_>>(),
+    )?;
+    Ok(d)
+}
