@@ -147,3 +147,25 @@ def test_shipped_baselines_load_and_run_the_benchmark(tmp_path):
     p = run("eval", "--task", "exploration", "--categories", "Door", "--episodes-per-category", "1",
             "--policies", f"inverse={ROOT / 'models' / 'baselines' / 'inverse'}", check=False)  # fmt: skip
     assert p.returncode == 2 and "serves only the goal task" in p.stderr
+
+
+def test_physics_and_protocol_switches_reach_the_episode_and_the_results(tmp_path):
+    paper = json.loads(run("--json", "explore", "--category", "Door", "--seed", "1").stdout)
+    assert paper["protocol"] == "paper" and paper["scene"]["physics"] == "reference"
+    strict = json.loads(
+        run(
+            "--json", "explore", "--category", "Door", "--seed", "1", "--protocol", "strict", "--physics", "ideal"
+        ).stdout
+    )
+    assert strict["protocol"] == "strict" and strict["scene"]["physics"] == "ideal"
+    assert len(strict["steps"]) == strict["budget"] == 10
+    # The paper ends the oracle's exploration at the limit: fewer steps than the budget.
+    assert paper["ended_by_protocol"] and len(paper["steps"]) < paper["budget"]
+    summary = json.loads(
+        run("--json", "eval", "--task", "goal", "--categories", "Kettle", "--episodes-per-category", "2",
+            "--policies", "random", "--protocol", "strict").stdout
+    )  # fmt: skip
+    assert summary["protocol"] == "strict" and summary["physics"] == "reference"
+    assert "oracle" in summary["policies"]  # the ceiling is always there
+    bad = run("eval", "--protocol", "fast", check=False)
+    assert bad.returncode == 2 and "paper or strict" in bad.stderr
