@@ -86,7 +86,6 @@ pub fn sample_visible_scene(
     for _ in 0..20 {
         let mut scene = sample_scene(rng, task, category, object.clone(), &model, None)?;
         scene.physics = physics;
-        scene.pose = pose;
         let env = match env.as_mut() {
             Some(e) => {
                 e.reset(scene.clone())?;

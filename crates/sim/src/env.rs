@@ -287,25 +287,9 @@ impl SimEnv {
                 "step_direction before a position action".into(),
             ));
         };
-        if !direction.is_finite() || direction.length() < 1e-6 {
-            return Err(SimError::InvalidAction(format!(
-                "direction {direction} must be finite and non-zero"
-            )));
-        }
-        let out = self.art.move_gripper(direction.normalize(), g.joint)?;
-        let jm = &self.model.joints[g.joint];
-        Ok(labels(
-            out.joint_before,
-            out.joint_after,
-            g.j0,
-            jm.lower,
-            jm.upper,
-            out.suction_lost,
-        ))
+        act(&mut self.art, &self.model, &g, direction)
     }
-}
 
-impl SimEnv {
     /// Dense labels: what each of `directions` would do from the current
     /// state, each simulated on a copy of the articulation, so the episode
     /// itself is not disturbed. The same state gives the same labels.
@@ -315,28 +299,36 @@ impl SimEnv {
                 "probe_directions before a position action".into(),
             ));
         };
-        let jm = &self.model.joints[g.joint];
         directions
             .iter()
-            .map(|d| {
-                if !d.is_finite() || d.length() < 1e-6 {
-                    return Err(SimError::InvalidAction(format!(
-                        "direction {d} must be finite and non-zero"
-                    )));
-                }
-                let mut art = self.art.duplicate();
-                let out = art.move_gripper(d.normalize(), g.joint)?;
-                Ok(labels(
-                    out.joint_before,
-                    out.joint_after,
-                    g.j0,
-                    jm.lower,
-                    jm.upper,
-                    out.suction_lost,
-                ))
-            })
+            .map(|d| act(&mut self.art.duplicate(), &self.model, g, *d))
             .collect()
     }
+}
+
+/// One direction action on `art` and its labels: what `step_direction` does
+/// to the episode and `probe_directions` to a copy.
+fn act(
+    art: &mut Articulation,
+    model: &ObjectModel,
+    g: &Grasp,
+    direction: Vec3,
+) -> Result<StepLabels> {
+    if !direction.is_finite() || direction.length() < 1e-6 {
+        return Err(SimError::InvalidAction(format!(
+            "direction {direction} must be finite and non-zero"
+        )));
+    }
+    let out = art.move_gripper(direction.normalize(), g.joint)?;
+    let jm = &model.joints[g.joint];
+    Ok(labels(
+        out.joint_before,
+        out.joint_after,
+        g.j0,
+        jm.lower,
+        jm.upper,
+        out.suction_lost,
+    ))
 }
 
 /// The paper's labels for one action (pure function, tested on its own).
