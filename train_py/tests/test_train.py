@@ -40,8 +40,11 @@ def test_curriculum_and_schedules():
     assert train.sequence_length(cfg, 0) == 4 and train.sequence_length(cfg, 999) == 4
     assert train.sequence_length(cfg, 1000) == 6 and train.sequence_length(cfg, 1400) == 8
     assert train.sequence_length(cfg, 10**6) == 20
-    assert train.linear(1.0, 0.1, 300, 0) == 1.0 and abs(train.linear(1.0, 0.1, 300, 150) - 0.55) < 1e-9
-    assert train.linear(1.0, 0.1, 300, 301) == 0.1
+    assert train.epsilon((1.0, 0.1), 0, 300, 0) == 1.0 and abs(train.epsilon((1.0, 0.1), 0, 300, 150) - 0.55) < 1e-9
+    assert train.epsilon((1.0, 0.1), 0, 300, 301) == 0.1
+    # The reference's warm-up: random until the start epoch, then the decay.
+    assert train.epsilon((1.0, 0.2), 800, 500, 799) == 1.0
+    assert abs(train.epsilon((1.0, 0.2), 800, 500, 1050) - 0.6) < 1e-9
 
 
 def test_replay_balances_classes_and_drops_stale_references():
@@ -229,3 +232,59 @@ def test_checkpoints_from_before_the_context_network_still_export(tmp_path, caps
     assert export.main([str(out / "checkpoint.pt"), str(tmp_path / "pkg")]) == 0
     meta = json.loads((tmp_path / "pkg" / "model.json").read_text())
     assert meta["config"]["direction_net"] == "plain"
+
+
+def test_dense_batches_weigh_each_aot_class_equally():
+    import torch
+
+    w = train.class_weights(torch.tensor([0, 0, 0, 2]), 3)
+    np.testing.assert_allclose(w.numpy(), [1 / 6, 1 / 6, 1 / 6, 1 / 2])
+    ranked = train.unit(np.random.default_rng(0).normal(size=(2, 10, 3))).astype(np.float32)
+    dirs = train.dense_directions(ranked, 6, np.random.default_rng(1))
+    assert dirs.shape == (2, 6, 3)
+    np.testing.assert_array_equal(dirs[:, :3], ranked[:, :3])  # the policy's best half first
+    np.testing.assert_allclose(np.linalg.norm(dirs, axis=-1), 1.0, rtol=1e-5)
+
+
+def test_dense_label_training_and_diagnostics_on_a_tiny_package(tmp_path, capsys):
+    import re
+
+    from umpnet_train import diagnose
+
+    out, pkg = tmp_path / "run", tmp_path / "package"
+    args = ["--preset", "smoke", "--out", str(out), "--epochs", "2", "--dense-labels", "6", "--export", str(pkg)]
+    assert train.main(args) == 0
+    text = capsys.readouterr().out
+    count = re.search(r"dense labels: (\d+) in", text)
+    assert count and int(count.group(1)) > 0 and int(count.group(1)) % 6 == 0, text
+    cfg = json.loads((pkg / "model.json").read_text())["config"]
+    assert (cfg["dense_labels"], cfg["labels"]) == (6, "reference")
+    # The diagnostics run on the package end to end and report shares.
+    assert diagnose.main([str(pkg), "--episodes", "2", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    for split in ("train", "test"):
+        s = report["splits"][split]
+        assert s["exploration"]["episodes"] == 2 and set(s["swap"]) == {
+            "learned/learned",
+            "learned/oracle",
+            "oracle/learned",
+        }
+        for key in ("aot_accuracy", "position_validity", "success"):
+            v = s["goal"][key]
+            assert v is None or 0.0 <= v <= 1.0, (key, v)
+    assert diagnose.main([str(tmp_path), "--episodes", "2"]) == 2  # not a package
+
+
+def test_diagnostic_measures_on_known_values():
+    from umpnet_train import diagnose
+
+    assert diagnose.spearman(np.array([1.0, 2, 3]), np.array([10.0, 20, 30])) == pytest.approx(1.0)
+    assert diagnose.spearman(np.array([1.0, 2, 3]), np.array([3.0, 2, 1])) == pytest.approx(-1.0)
+    assert diagnose.spearman(np.array([1.0, 2, 3]), np.array([5.0, 5, 5])) is None
+    # Toward the reference is -1, away +1, not moved 0.
+    aot = diagnose.true_aot(0.5, np.array([0.3, 0.8, 0.5]), 0.0, np.array([True, True, False]))
+    np.testing.assert_array_equal(aot, [-1, 1, 0])
+    # Progress: away from the start when exploring, toward the goal otherwise.
+    np.testing.assert_allclose(diagnose.progress(0.5, np.array([0.8, 0.2]), 0.0, 1.0, "exploration"), [0.3, -0.3])
+    np.testing.assert_allclose(diagnose.progress(0.5, np.array([0.8, 0.2]), 0.0, 1.0, "goal"), [0.3, -0.3])
+    np.testing.assert_allclose(diagnose.progress(0.5, np.array([0.8, 0.2]), 0.0, 0.0, "goal"), [-0.3, 0.3])

@@ -18,16 +18,29 @@ class Config:
     # "context": difference channels, global context, bilinear heads (models.py);
     # "plain": the direction network of the packages shipped before it.
     direction_net: str = "context"
+    decoder_hidden: int = 1024  # width of the decoder MLPs (the paper's appendix)
     variant: str = "umpnet"  # umpnet | single-step | aot-only | signed-dist | where2act | inverse
     # Data collection (paper: 64 environments, 6400-sample FIFO replay buffer)
     num_envs: int = 64
     replay_size: int = 6400
     categories: list[str] = field(default_factory=list)  # empty: the 12 training categories
     physics: str = "reference"  # the paper's simulator; "ideal": every pull follows the joint's path
-    # Epsilon-greedy schedules (linear decay over `*_decay_epochs`)
+    # "reference": the released code's thresholds (0.1 rad / 0.05 m, range/3.5) and a
+    # contradictory policy that turns back at the joint limit; "delta": δ thresholds and
+    # a turn at half the sequence (the packages shipped before).
+    labels: str = "reference"
+    # Dense labels: at each visited state also simulate this many directions (half the
+    # policy's best candidates, half uniform) and train the decoder on all of them.
+    # 0: only the executed action, as the paper.
+    dense_labels: int = 0
+    dense_states: int = 8  # states per dense batch (all their labels in one encoder pass)
+    # Epsilon-greedy schedules: random actions (and no training of that network)
+    # until `*_start_epoch`, then a linear decay over `*_decay_epochs`.
     position_epsilon: tuple[float, float] = (1.0, 0.1)
+    position_start_epoch: int = 500
     position_decay_epochs: int = 300
     direction_epsilon: tuple[float, float] = (1.0, 0.2)
+    direction_start_epoch: int = 800
     direction_decay_epochs: int = 500
     # Sequence-length curriculum: start, step, every, after, max
     seq_start: int = 4
@@ -36,12 +49,13 @@ class Config:
     seq_after: int = 1000
     seq_max: int = 20
     # Optimisation
-    epochs: int = 10000
+    epochs: int = 5000
     batch_position: int = 16  # balanced 1:1 positive/negative
     batch_direction: int = 24  # balanced 1:1:1 over AoT classes
-    iterations_per_epoch: int = 4
-    lr: float = 1e-4
-    lr_decay_every: int = 5000
+    iterations_per_epoch: int = 8
+    lr: float = 8e-3
+    adam_betas: tuple[float, float] = (0.9, 0.95)
+    lr_decay_every: int = 500
     lr_decay: float = 0.5
     dist_loss_weight: float = 100.0
     # Bookkeeping
@@ -63,16 +77,20 @@ PRESETS = {
         "direction_widths": (8, 16, 32),
         "embedding": 32,
         "action_embedding": 16,
+        "decoder_hidden": 64,
         "num_envs": 16,
         "replay_size": 6400,
         "epochs": 300,
+        "position_start_epoch": 0,
         "position_decay_epochs": 200,
+        "direction_start_epoch": 0,
         "direction_decay_epochs": 300,
         "seq_start": 4,
         "seq_every": 100,
         "seq_after": 150,
         "seq_max": 8,
         "lr": 1e-3,
+        "adam_betas": (0.9, 0.999),
         "lr_decay_every": 250,
         "iterations_per_epoch": 4,
         "checkpoint_every": 50,
@@ -84,9 +102,12 @@ PRESETS = {
         "direction_widths": (8, 16),
         "embedding": 16,
         "action_embedding": 8,
+        "decoder_hidden": 32,
         "num_envs": 4,
         "replay_size": 256,
         "epochs": 3,
+        "position_start_epoch": 0,
+        "direction_start_epoch": 0,
         "seq_start": 3,
         "seq_max": 3,
         "iterations_per_epoch": 2,
@@ -106,12 +127,28 @@ def make_config(preset: str = "paper", **overrides) -> Config:
         raise ValueError(f"unknown config fields {sorted(unknown)}")
     if values.get("direction_net", "context") not in ("context", "plain"):
         raise ValueError(f"direction_net {values['direction_net']!r}: expected 'context' or 'plain'")
+    if values.get("labels", "reference") not in ("reference", "delta"):
+        raise ValueError(f"labels {values['labels']!r}: expected 'reference' or 'delta'")
+    if values.get("dense_labels", 0) < 0:
+        raise ValueError(f"dense_labels {values['dense_labels']}: expected 0 (off) or a positive count")
     return Config(**values)
+
+
+# What a checkpoint written before a field existed was trained with.
+_BEFORE_FIELDS = {
+    "direction_net": "plain",
+    "decoder_hidden": 64,
+    "labels": "delta",
+    "position_start_epoch": 0,
+    "direction_start_epoch": 0,
+    "adam_betas": (0.9, 0.999),
+}
 
 
 def config_from_checkpoint(saved: dict) -> Config:
     """The Config a checkpoint or a package's model.json recorded. JSON turns
-    tuples into lists; checkpoints written before `direction_net` existed used
-    the plain network."""
-    values = {k: tuple(v) if isinstance(v, list) and k.endswith("widths") else v for k, v in saved.items()}
-    return Config(**{"direction_net": "plain", **values})
+    tuples into lists; fields a checkpoint predates take the values it was
+    trained with (_BEFORE_FIELDS), not today's defaults."""
+    tuples = {f.name for f in dataclasses.fields(Config) if isinstance(f.default, tuple)}
+    values = {k: tuple(v) if k in tuples and isinstance(v, list) else v for k, v in saved.items()}
+    return Config(**{**_BEFORE_FIELDS, **values})

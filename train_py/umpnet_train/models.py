@@ -148,7 +148,9 @@ class DirectionEncoder(nn.Module):
 class DirectionDecoder(nn.Module):
     """Scores one candidate direction from the cached image embeddings."""
 
-    def __init__(self, embedding: int, action_embedding: int, variant: str = "umpnet", net: str = "context"):
+    def __init__(
+        self, embedding: int, action_embedding: int, variant: str = "umpnet", net: str = "context", hidden: int = 64
+    ):
         super().__init__()
         self.variant = variant
         # "context": each output also gets a term linear in the direction, with
@@ -160,7 +162,6 @@ class DirectionDecoder(nn.Module):
         self.action = nn.Sequential(
             nn.Linear(3, action_embedding), nn.ReLU(), nn.Linear(action_embedding, action_embedding)
         )
-        hidden = 64
         self.dist_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 1))
         self.aot_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 3))
         if variant == "inverse":
@@ -196,7 +197,9 @@ class UMPNet(nn.Module):
         self.encoder = DirectionEncoder(
             tuple(cfg.direction_widths), cfg.embedding, uses_reference(cfg.variant), cfg.direction_net
         )
-        self.decoder = DirectionDecoder(cfg.embedding, cfg.action_embedding, cfg.variant, cfg.direction_net)
+        self.decoder = DirectionDecoder(
+            cfg.embedding, cfg.action_embedding, cfg.variant, cfg.direction_net, cfg.decoder_hidden
+        )
 
     def direction(self, observation, reference, pixel, direction):
         de, ae = self.encoder(observation, reference, pixel)

@@ -140,3 +140,44 @@ def _balanced(rng: np.random.Generator, groups: list[np.ndarray], batch: int) ->
         return np.zeros(0, np.int64)
     per = [batch // len(groups) + (1 if k < batch % len(groups) else 0) for k in range(len(groups))]
     return np.concatenate([rng.choice(g, size=m, replace=len(g) < m) for g, m in zip(groups, per, strict=True)])
+
+
+class DenseReplay:
+    """States with K simulated directions each (dense labels): the image is kept
+    once per state, and a batch trains the decoder on all K directions of its
+    states in one encoder pass. References live in the main buffer's ring."""
+
+    def __init__(self, capacity: int, shape: tuple[int, int, int], k: int):
+        self.ring = Ring(capacity)
+        self.images = np.zeros((capacity, *shape), np.float16)
+        self.pixels = np.zeros((capacity, 2), np.int64)
+        self.vectors = np.zeros((capacity, k, 3), np.float32)
+        self.dist = np.zeros((capacity, k), np.float32)
+        self.aot = np.zeros((capacity, k), np.int64)
+        self.ref = np.zeros(capacity, np.int64)
+        self.ref_gen = np.zeros(capacity, np.int64)
+
+    def add(self, image, pixel, directions, r_dist, aot, ref: tuple[int, int]):
+        i, _ = self.ring.slot()
+        self.images[i], self.pixels[i], self.vectors[i] = image, pixel, directions
+        self.dist[i], self.aot[i] = r_dist, aot
+        self.ref[i], self.ref_gen[i] = ref
+
+    def sample(self, rng: np.random.Generator, states: int, refs: Ring, ref_images: np.ndarray):
+        """Uniform over states whose reference is still in `refs`."""
+        n = self.ring.size
+        alive = np.flatnonzero(refs.generation[self.ref[:n]] == self.ref_gen[:n])
+        if not len(alive):
+            return None
+        idx = rng.choice(alive, size=min(states, len(alive)), replace=False)
+        return (
+            self.images[idx],
+            ref_images[self.ref[idx]],
+            self.pixels[idx],
+            self.vectors[idx],
+            self.dist[idx],
+            self.aot[idx],
+        )
+
+    def __len__(self) -> int:
+        return self.ring.size

@@ -1,8 +1,11 @@
 """Train UMPNet against the umpnet Rust environments, the paper's way:
-self-guided exploration with epsilon-greedy position/direction choices, a
-contradictory policy (first half of a sequence pushes forward, second half
-back), a growing sequence length, FIFO replay, balanced batches, and the
-loss 100 x MSE(distance) + CE(AoT) (+ CE(position)).
+self-guided exploration with epsilon-greedy position/direction choices after
+a random warm-up, the contradictory policy (forward until the joint limit or
+half the sequence, then back to the start), the released code's label
+thresholds, a growing sequence length, FIFO replay, balanced batches, and the
+loss 100 x MSE(distance) + CE(AoT) (+ CE(position)). With --dense-labels K the
+simulator also labels K directions at every visited state (the policy's best
+candidates and random ones), and the decoder trains on all of them.
 
     python -m umpnet_train.train --preset cpu-small --out ../runs/small --export ../models/umpnet-small
 """
@@ -28,7 +31,7 @@ from tqdm import tqdm
 from .config import Config, config_from_checkpoint, make_config
 from .export import export_model
 from .models import UMPNet
-from .replay import Replay
+from .replay import DenseReplay, Replay
 
 OBJECT_SEGMENT = 1 << 16  # segment ids of object links start here
 TRAIN_CATEGORIES = [
@@ -37,8 +40,14 @@ TRAIN_CATEGORIES = [
 ]  # fmt: skip
 
 
-def linear(start: float, end: float, epochs: int, epoch: int) -> float:
-    return end if epoch >= epochs else start + (end - start) * epoch / max(epochs, 1)
+def epsilon(schedule: tuple[float, float], start_epoch: int, decay_epochs: int, epoch: int) -> float:
+    """1 (random actions) until `start_epoch`, then linear from schedule[0] to
+    schedule[1] over `decay_epochs` (the reference's warm-up and decay)."""
+    if epoch < start_epoch:
+        return 1.0
+    first, last = schedule
+    done = (epoch - start_epoch) / max(decay_epochs, 1)
+    return last if done >= 1 else first + (last - first) * done
 
 
 def sequence_length(cfg: Config, epoch: int) -> int:
@@ -82,85 +91,157 @@ def choose_positions(model, obs, eps, rng):
 @torch.no_grad()
 def choose_directions(model, variant, obs, wanted, eps, rng, candidates=64):
     """Greedy: among random candidates, the largest predicted distance with the
-    wanted AoT (+1 forward, -1 back); else a uniformly random direction.
+    wanted AoT (+1 forward, -1 back, 0 either: the first step of a sequence);
+    else a uniformly random direction. Returns (directions n x 3, candidates
+    n x C x 3 ordered best first by the policy's score).
     The Inverse baseline has no score to explore with: its data comes from
     uniformly random directions."""
     n = obs["image"].shape[0]
+    cand = unit(rng.normal(size=(n, candidates, 3))).astype(np.float32)
+    out = unit(rng.normal(size=(n, 3))).astype(np.float32)
     if variant == "inverse":
-        return unit(rng.normal(size=(n, 3))).astype(np.float32)
+        return out, cand
     pix = to_long(obs["gripper_pixel"].clip(min=0))
     de, ae = model.encoder(to_torch(obs["image"]), to_torch(obs["reference"]), pix)
-    cand = unit(rng.normal(size=(n, candidates, 3))).astype(np.float32)
     dist, logits = model.decoder(
         de.repeat_interleave(candidates, 0), ae.repeat_interleave(candidates, 0), to_torch(cand.reshape(-1, 3))
     )
     dist = dist.view(n, candidates).cpu().numpy()
     probs = torch.softmax(logits, 1).view(n, candidates, 3).cpu().numpy()
-    out = unit(rng.normal(size=(n, 3))).astype(np.float32)
+    ranked = np.empty_like(cand)
     for i in range(n):
-        if rng.random() < eps:
-            continue
-        k = {1: 2, -1: 0}[int(wanted[i])]
+        w = int(wanted[i])
+        k = {1: 2, -1: 0, 0: None}[w]
         if variant == "aot-only":
-            score = probs[i, :, k]
+            score = 1.0 - probs[i, :, 1] if k is None else probs[i, :, k]
         elif variant == "where2act":
             score = dist[i]  # logit of success; no arrow of time
         elif variant == "signed-dist":
-            score = dist[i] * wanted[i]
+            score = np.abs(dist[i]) if k is None else dist[i] * w
         else:
-            score = np.where(probs[i].argmax(1) == k, dist[i], -np.inf)
-        if np.isfinite(score.max()):
-            out[i] = cand[i, int(score.argmax())]
-    return out
+            moving = probs[i].argmax(1) != 1 if k is None else probs[i].argmax(1) == k
+            score = np.where(moving, dist[i], -np.inf)
+        order = np.argsort(-np.nan_to_num(score, neginf=-1e30), kind="stable")
+        ranked[i] = cand[i, order]
+        if rng.random() >= eps and np.isfinite(score.max()):
+            out[i] = cand[i, order[0]]
+    return out, ranked
 
 
-def collect(env, model, cfg, replay, epoch, rng, stats):
-    """One sequence per environment: a position, then L directions."""
+def dense_directions(ranked: np.ndarray, k: int, rng) -> np.ndarray:
+    """The K directions to probe at each state: the policy's best half of its
+    candidates, and uniformly random ones for the rest."""
+    n = ranked.shape[0]
+    best = min(k // 2, ranked.shape[1])
+    rand = unit(rng.normal(size=(n, k - best, 3))).astype(np.float32)
+    return np.ascontiguousarray(np.concatenate([ranked[:, :best], rand], axis=1), dtype=np.float32)
+
+
+def collect(env, model, cfg, replay, dense, epoch, rng, stats):
+    """One sequence per environment: a position, then up to L directions under
+    the contradictory policy."""
     model.eval()
     t0 = time.perf_counter()
     obs = env.reset()
     stats["sim_s"] += time.perf_counter() - t0
     refs = [replay.add_reference(obs["reference"][i]) for i in range(len(env))]
-    eps_pos = linear(*cfg.position_epsilon, cfg.position_decay_epochs, epoch)
-    eps_dir = linear(*cfg.direction_epsilon, cfg.direction_decay_epochs, epoch)
+    eps_pos = epsilon(cfg.position_epsilon, cfg.position_start_epoch, cfg.position_decay_epochs, epoch)
+    eps_dir = epsilon(cfg.direction_epsilon, cfg.direction_start_epoch, cfg.direction_decay_epochs, epoch)
     pixels = choose_positions(model, obs, eps_pos, rng)
     first = obs["image"]
     t0 = time.perf_counter()
     obs, info = env.step_position(pixels)
     stats["sim_s"] += time.perf_counter() - t0
     valid = np.array(info["valid"])
+    reference_rule = cfg.labels == "reference"
+    aot_key, moved_key = ("train_aot", "train_moved") if reference_rule else ("aot", "moved")
     moved_any = np.zeros(len(env), bool)
+    done = ~valid
+    heading = np.ones(len(env), np.int64)  # +1 away from the start, -1 back
     length = sequence_length(cfg, epoch)
     for t in range(length):
-        if not valid.any():
+        if done.all():
             break
-        # The contradictory policy: forward in the first half, back in the second.
-        wanted = np.full(len(env), 1 if t < (length + 1) // 2 else -1)
-        dirs = choose_directions(model, cfg.variant, obs, wanted, eps_dir, rng)
+        if reference_rule:
+            # The reference: the first move may go either way, then forward until
+            # the joint limit (or half the sequence), then back to the start.
+            wanted = np.zeros(len(env), np.int64) if t == 0 else heading
+        else:
+            wanted = np.full(len(env), 1 if t < (length + 1) // 2 else -1)
+        dirs, ranked = choose_directions(model, cfg.variant, obs, wanted, eps_dir, rng)
         before = obs
+        if dense is not None:
+            t0 = time.perf_counter()
+            probe_dirs = dense_directions(ranked, cfg.dense_labels, rng)
+            probed = env.probe_directions(probe_dirs)
+            stats["probe_s"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         obs, labels, sinfo = env.step_direction(dirs)
         stats["sim_s"] += time.perf_counter() - t0
-        for i in np.flatnonzero(sinfo["active"]):
+        record = np.array(sinfo["active"]) & ~done
+        for i in np.flatnonzero(record):
             # The Inverse model learns (s_t, s_t+1) -> a_t: its "reference" is the next observation.
             ref = replay.add_reference(obs["image"][i]) if cfg.variant == "inverse" else refs[i]
-            replay.add_direction(
-                before["image"][i], before["gripper_pixel"][i], dirs[i], labels["r_dist"][i], labels["aot"][i], ref
-            )
-            moved_any[i] |= bool(labels["moved"][i])
-            stats["aot_counts"][int(labels["aot"][i]) + 1] += 1
+            aot = int(labels[aot_key][i])
+            replay.add_direction(before["image"][i], before["gripper_pixel"][i], dirs[i], labels["r_dist"][i], aot, ref)
+            moved_any[i] |= bool(labels[moved_key][i])
+            stats["aot_counts"][aot + 1] += 1
+            if dense is not None and probed["active"][i]:
+                dense.add(
+                    before["image"][i], before["gripper_pixel"][i], probe_dirs[i],
+                    probed["r_dist"][i], probed[aot_key][i], refs[i],
+                )  # fmt: skip
+                stats["dense_labels"] += cfg.dense_labels
+        if reference_rule:
+            turn = (heading == 1) & ((t + 1 == length // 2) | np.asarray(sinfo["reached_boundary"]))
+            done |= (heading == -1) & np.asarray(sinfo["reached_init"])
+            heading[turn] = -1
+        stats["steps"] += int(record.sum())
     for i in range(len(env)):
         replay.add_position(first[i], pixels[i], int(valid[i] and moved_any[i]))
     stats["positions"] += len(env)
     stats["position_success"] += int((valid & moved_any).sum())
-    stats["steps"] += int(valid.sum()) * length
 
 
-def losses(model, cfg, replay, rng):
+def class_weights(groups: torch.Tensor, classes: int) -> torch.Tensor:
+    """Per-sample weights that give each class present the same total weight
+    (summing to 1): a dense batch balanced the way the executed batches are
+    sampled (1:1:1 over AoT classes)."""
+    counts = torch.bincount(groups, minlength=classes).float()
+    present = (counts > 0).sum()
+    return (1.0 / counts.clamp(min=1))[groups] / present
+
+
+def direction_losses(cfg, pred_dist, logits, dist, aot, weights, prefix, out):
+    """The direction network's loss for one batch (executed or dense), by
+    variant; `weights` sum to 1 over the batch. Returns the weighted total."""
+
+    def mean(x):
+        return (x * weights).sum()
+
+    aot_t = to_long(aot + 1)
+    if cfg.variant == "where2act":
+        moved = to_torch((aot != 0).astype(np.float32))
+        out[f"loss/{prefix}success"] = mean(F.binary_cross_entropy_with_logits(pred_dist, moved, reduction="none"))
+        out[f"metric/{prefix}success_accuracy"] = ((pred_dist > 0).float() == moved).float().mean()
+        return out[f"loss/{prefix}success"]
+    if cfg.variant == "signed-dist":
+        out[f"loss/{prefix}dist"] = mean((pred_dist - to_torch(dist * aot.astype(np.float32))) ** 2)
+        return cfg.dist_loss_weight * out[f"loss/{prefix}dist"]
+    out[f"loss/{prefix}aot"] = mean(F.cross_entropy(logits, aot_t, reduction="none"))
+    out[f"metric/{prefix}aot_accuracy"] = (logits.argmax(1) == aot_t).float().mean()
+    total = out[f"loss/{prefix}aot"]
+    if cfg.variant != "aot-only":
+        out[f"loss/{prefix}dist"] = mean((pred_dist - to_torch(dist)) ** 2)
+        total = total + cfg.dist_loss_weight * out[f"loss/{prefix}dist"]
+    return total
+
+
+def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=True):
     out = {}
-    imgs, pix, lab = replay.sample_positions(rng, cfg.batch_position)
     total = torch.zeros((), device=DEVICE)
-    if len(lab):
+    imgs, pix, lab = replay.sample_positions(rng, cfg.batch_position)
+    if train_position and len(lab):
         logits = model.position(to_torch(imgs))
         at = logits[torch.arange(len(lab), device=DEVICE), :, to_long(pix[:, 0]), to_long(pix[:, 1])]
         target = to_long(lab)
@@ -169,6 +250,9 @@ def losses(model, cfg, replay, rng):
         tp, fp = int(((pred == 1) & (target == 1)).sum()), int(((pred == 1) & (target == 0)).sum())
         out["metric/position_precision"] = torch.tensor(tp / max(tp + fp, 1))
         total = total + out["loss/position"]
+    if not train_direction:
+        out["loss/total"] = total
+        return out
     groups = {"where2act": "binary", "inverse": "moved"}.get(cfg.variant, "aot")
     imgs, refs, pix, dirs, dist, aot = replay.sample_directions(rng, cfg.batch_direction, groups)
     if len(aot) and cfg.variant == "inverse":
@@ -178,22 +262,20 @@ def losses(model, cfg, replay, rng):
         total = total + out["loss/inverse"]
     elif len(aot):
         pred_dist, logits = model.direction(to_torch(imgs), to_torch(refs), to_long(pix), to_torch(dirs))
-        aot_t = to_long(aot + 1)
-        if cfg.variant == "where2act":
-            moved = to_torch((aot != 0).astype(np.float32))
-            out["loss/success"] = F.binary_cross_entropy_with_logits(pred_dist, moved)
-            out["metric/success_accuracy"] = ((pred_dist > 0).float() == moved).float().mean()
-            total = total + out["loss/success"]
-        elif cfg.variant == "signed-dist":
-            out["loss/dist"] = F.mse_loss(pred_dist, to_torch(dist * aot.astype(np.float32)))
-            total = total + cfg.dist_loss_weight * out["loss/dist"]
-        else:
-            out["loss/aot"] = F.cross_entropy(logits, aot_t)
-            out["metric/aot_accuracy"] = (logits.argmax(1) == aot_t).float().mean()
-            total = total + out["loss/aot"]
-            if cfg.variant != "aot-only":
-                out["loss/dist"] = F.mse_loss(pred_dist, to_torch(dist))
-                total = total + cfg.dist_loss_weight * out["loss/dist"]
+        weights = torch.full((len(aot),), 1.0 / len(aot), device=DEVICE)  # already balanced by sampling
+        total = total + direction_losses(cfg, pred_dist, logits, dist, aot, weights, "", out)
+    batch = dense.sample(rng, cfg.dense_states, replay.refs, replay.ref_images) if dense is not None else None
+    if batch is not None and cfg.variant != "inverse":
+        imgs, refs, pix, dirs, dist, aot = batch
+        k = dirs.shape[1]
+        de, ae = model.encoder(to_torch(imgs), to_torch(refs), to_long(pix))
+        pred_dist, logits = model.decoder(
+            de.repeat_interleave(k, 0), ae.repeat_interleave(k, 0), to_torch(dirs.reshape(-1, 3))
+        )
+        aot, dist = aot.reshape(-1), dist.reshape(-1)
+        groups_t = to_long((aot != 0).astype(np.int64) if cfg.variant == "where2act" else aot + 1)
+        weights = class_weights(groups_t, 3)
+        total = total + direction_losses(cfg, pred_dist, logits, dist, aot, weights, "dense_", out)
     out["loss/total"] = total
     return out
 
@@ -231,6 +313,17 @@ def parse_args(argv=None):
     p.add_argument("--eval-every", type=int, help="epochs between `umpnet eval` runs (0: never)")
     p.add_argument("--renderer", choices=["auto", "wgpu", "cpu"])
     p.add_argument("--physics", choices=["reference", "ideal"], help="physics profile of the environments")
+    p.add_argument(
+        "--labels",
+        choices=["reference", "delta"],
+        help="reference (default): the released code's label thresholds and contradictory policy; delta: δ",
+    )
+    p.add_argument(
+        "--dense-labels",
+        type=int,
+        metavar="K",
+        help="also simulate K directions at every visited state and train on all of them (0: off, the paper)",
+    )
     p.add_argument("--device", help="auto, cpu or cuda")
     p.add_argument("--direction-widths", help="DirectionNet U-Net widths per level, e.g. 8,16,32,64")
     p.add_argument(
@@ -255,6 +348,8 @@ def parse_args(argv=None):
         eval_every=a.eval_every,
         renderer=a.renderer,
         physics=a.physics,
+        labels=a.labels,
+        dense_labels=a.dense_labels,
         device=a.device,
         save_replay=a.save_replay,
         direction_widths=_widths(p, a.direction_widths),
@@ -295,7 +390,7 @@ def main(argv=None) -> int:
         "cuda" if cfg.device == "auto" and torch.cuda.is_available() else cfg.device.replace("auto", "cpu")
     )
     model = UMPNet(cfg).to(DEVICE)
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=tuple(cfg.adam_betas))
     sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_decay_every, gamma=cfg.lr_decay)
     start, wall_before = 0, 0.0
     ckpt_path = out / "checkpoint.pt"
@@ -331,6 +426,12 @@ def main(argv=None) -> int:
         physics=cfg.physics,
     )
     replay = Replay(cfg.replay_size, (cfg.height, cfg.width, 10))
+    # Dense states keep one image for K labels: a quarter of the buffer's states.
+    dense = (
+        DenseReplay(max(cfg.replay_size // 4, 1), (cfg.height, cfg.width, 10), cfg.dense_labels)
+        if cfg.dense_labels
+        else None
+    )
     replay_path = out / "replay.npz"
     if args.resume:
         if replay_path.is_file():
@@ -345,7 +446,10 @@ def main(argv=None) -> int:
     writer = SummaryWriter(str(out / "tb"))
     umpnet_bin = str(Path(__file__).resolve().parents[2] / "target" / "release" / "umpnet")
     command = "python -m umpnet_train.train " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
-    stats = {"sim_s": 0.0, "learn_s": 0.0, "positions": 0, "position_success": 0, "steps": 0, "aot_counts": [0, 0, 0]}
+    stats = {
+        "sim_s": 0.0, "probe_s": 0.0, "learn_s": 0.0, "positions": 0, "position_success": 0, "steps": 0,
+        "dense_labels": 0, "aot_counts": [0, 0, 0],
+    }  # fmt: skip
     t_start = time.perf_counter()
 
     def provenance(epoch):
@@ -366,14 +470,19 @@ def main(argv=None) -> int:
         range(start, cfg.epochs), initial=start, total=cfg.epochs, desc="epochs", disable=not sys.stderr.isatty()
     )
     for epoch in bar:
-        collect(env, model, cfg, replay, epoch, rng, stats)
+        collect(env, model, cfg, replay, dense, epoch, rng, stats)
         model.train()
         t0 = time.perf_counter()
         for _ in range(cfg.iterations_per_epoch):
-            out_l = losses(model, cfg, replay, rng)
-            opt.zero_grad()
-            out_l["loss/total"].backward()
-            opt.step()
+            out_l = losses(
+                model, cfg, replay, dense, rng,
+                train_position=epoch >= cfg.position_start_epoch,
+                train_direction=epoch >= cfg.direction_start_epoch,
+            )  # fmt: skip
+            if out_l["loss/total"].requires_grad:  # nothing to train during the warm-up
+                opt.zero_grad()
+                out_l["loss/total"].backward()
+                opt.step()
         sched.step()
         stats["learn_s"] += time.perf_counter() - t0
         for k, v in out_l.items():
@@ -384,6 +493,8 @@ def main(argv=None) -> int:
         writer.add_scalar("collect/sequence_length", sequence_length(cfg, epoch), epoch)
         share = stats["sim_s"] / max(stats["sim_s"] + stats["learn_s"], 1e-9)
         writer.add_scalar("time/simulation_share", share, epoch)
+        if stats["probe_s"]:
+            writer.add_scalar("time/dense_labels_per_s", stats["dense_labels"] / stats["probe_s"], epoch)
         bar.set_postfix(loss=f"{float(out_l['loss/total'].detach()):.3f}", sim=f"{share:.0%}")
         if (epoch + 1) % cfg.checkpoint_every == 0 or epoch + 1 == cfg.epochs:
             ck = {
@@ -413,6 +524,9 @@ def main(argv=None) -> int:
         f"trained {cfg.epochs} epochs in {prov['wall_seconds']:.0f} s; simulation {prov['simulation_share']:.0%} of the time"
     )
     print(f"AoT labels collected (-1, 0, +1): {stats['aot_counts']}")
+    if stats["dense_labels"]:
+        rate = stats["dense_labels"] / max(stats["probe_s"], 1e-9)
+        print(f"dense labels: {stats['dense_labels']} in {stats['probe_s']:.0f} s ({rate:.0f} labels/s)")
     if args.export:
         worst = export_model(model.cpu(), cfg, args.export, prov)
         print(f"exported {args.export} (max |ONNX - PyTorch| = {worst:.2e})")

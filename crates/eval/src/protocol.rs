@@ -69,23 +69,7 @@ impl std::str::FromStr for Protocol {
     }
 }
 
-/// The reference's closeness threshold for a joint: 0.1 rad or 0.05 m, at
-/// most a 3.5th of the range.
-pub fn threshold(prismatic: bool, lower: f32, upper: f32) -> f32 {
-    let base: f32 = if prismatic { 0.05 } else { 0.1 };
-    let range = upper - lower;
-    if range.is_finite() {
-        base.min(range / 3.5)
-    } else {
-        base
-    }
-}
-
-/// The paper's end of an exploration episode: near a limit, and moved away
-/// from the start.
-pub fn reached_limit(value: f32, start: f32, lower: f32, upper: f32, threshold: f32) -> bool {
-    (value - start).abs() > threshold && (value < lower + threshold || value > upper - threshold)
-}
+pub use umpnet_sim::labels::{reached_limit, threshold};
 
 /// The paper's end of a goal episode: within the threshold of the goal, or
 /// across it since the last step.

@@ -150,6 +150,8 @@ fn labels_dict<'py>(py: Python<'py>, l: &StepLabels) -> PyResult<Bound<'py, PyDi
     d.set_item("r_dist", l.r_dist)?;
     d.set_item("aot", l.aot)?;
     d.set_item("moved", l.moved)?;
+    d.set_item("train_aot", l.train.aot)?;
+    d.set_item("train_moved", l.train.moved)?;
     Ok(d)
 }
 
@@ -164,6 +166,8 @@ fn step_info<'py>(
     d.set_item("reached_limit", l.reached_limit)?;
     d.set_item("back_at_start", l.back_at_start)?;
     d.set_item("suction_lost", l.suction_lost)?;
+    d.set_item("reached_boundary", l.train.reached_boundary)?;
+    d.set_item("reached_init", l.train.reached_init)?;
     d.set_item("joints", joints)?;
     Ok(d)
 }
@@ -504,6 +508,22 @@ impl VecEnv {
                 .map(|i| i.joint.map(|j| j as i64).unwrap_or(-1))
                 .collect::<Vec<_>>(),
         )?;
+        // (n, 2) limits and (n,) thresholds of the grasped joints; NaN where no grasp.
+        let limits: Vec<f32> = infos
+            .iter()
+            .flat_map(|i| i.limits.unwrap_or([f32::NAN; 2]))
+            .collect();
+        info.set_item("limits", PyArray1::from_vec(py, limits).reshape([n, 2])?)?;
+        info.set_item(
+            "threshold",
+            PyArray1::from_vec(
+                py,
+                infos
+                    .iter()
+                    .map(|i| i.threshold.unwrap_or(f32::NAN))
+                    .collect::<Vec<_>>(),
+            ),
+        )?;
         Ok((stack(py, &obs, &refs)?, info))
     }
 
@@ -568,6 +588,22 @@ impl VecEnv {
                 .map(|(_, l)| l.as_ref().is_some_and(|l| l.moved))
                 .collect::<Vec<_>>(),
         )?;
+        labels.set_item(
+            "train_aot",
+            PyArray1::from_vec(
+                py,
+                out.iter()
+                    .map(|(_, l)| l.as_ref().map(|l| l.train.aot as i64).unwrap_or(0))
+                    .collect::<Vec<_>>(),
+            ),
+        )?;
+        let flag = |f: &dyn Fn(&StepLabels) -> bool| -> Vec<bool> {
+            out.iter().map(|(_, l)| l.as_ref().is_some_and(f)).collect()
+        };
+        labels.set_item(
+            "train_moved",
+            PyArray1::from_vec(py, flag(&|l| l.train.moved)),
+        )?;
         let info = PyDict::new(py);
         info.set_item(
             "active",
@@ -582,6 +618,14 @@ impl VecEnv {
             out.iter()
                 .map(|(_, l)| l.as_ref().is_some_and(|l| l.suction_lost))
                 .collect::<Vec<_>>(),
+        )?;
+        info.set_item(
+            "reached_boundary",
+            PyArray1::from_vec(py, flag(&|l| l.train.reached_boundary)),
+        )?;
+        info.set_item(
+            "reached_init",
+            PyArray1::from_vec(py, flag(&|l| l.train.reached_init)),
         )?;
         Ok((stack(py, &obs, &refs)?, labels, info))
     }
@@ -753,8 +797,22 @@ fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
 mod physics;
 mod probe;
 
+/// The object categories in the paper's order: (name, split, step budget),
+/// split "train" or "test" (the categories held out from training).
+#[pyfunction]
+fn categories() -> Vec<(&'static str, &'static str, usize)> {
+    umpnet_sim::objects::Category::ALL
+        .iter()
+        .map(|c| {
+            let split = if c.is_train() { "train" } else { "test" };
+            (c.name(), split, c.step_budget())
+        })
+        .collect()
+}
+
 #[pymodule]
 fn _umpnet(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(categories, m)?)?;
     m.add_class::<Env>()?;
     m.add_class::<physics::Articulation>()?;
     m.add_class::<VecEnv>()?;

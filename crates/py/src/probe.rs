@@ -111,6 +111,20 @@ pub(crate) fn labels_dict<'py>(
         .map(|&m| m > 0.5)
         .collect();
     d.set_item("moved", PyArray1::from_vec(py, moved).reshape([n, k])?)?;
+    // The reference training code's labels (umpnet_sim::labels::train_labels).
+    let aot: Vec<i64> = cell(&|l| l.train.aot as f32)
+        .iter()
+        .map(|&a| a as i64)
+        .collect();
+    d.set_item("train_aot", PyArray1::from_vec(py, aot).reshape([n, k])?)?;
+    let moved: Vec<bool> = cell(&|l| l.train.moved as u8 as f32)
+        .iter()
+        .map(|&m| m > 0.5)
+        .collect();
+    d.set_item(
+        "train_moved",
+        PyArray1::from_vec(py, moved).reshape([n, k])?,
+    )?;
     d.set_item(
         "active",
         labels.iter().map(|l| l.is_some()).collect::<Vec<_>>(),

@@ -42,7 +42,7 @@ def test_reset_and_step_shapes_and_dtypes():
     assert info["valid"] and info["joint"] is not None and len(info["point_in_world"]) == 3
     assert (obs["gripper_pixel"] >= 0).all()
     obs, labels, info = env.step_direction(env.scripted_action("oracle"))
-    assert set(labels) == {"r_dist", "aot", "moved"} and labels["aot"] in (-1, 0, 1)
+    assert set(labels) == {"r_dist", "aot", "moved", "train_aot", "train_moved"} and labels["aot"] in (-1, 0, 1)
     assert isinstance(info["joints"], list) and "reached_limit" in info
 
 
@@ -265,9 +265,30 @@ def test_probe_directions_gives_dense_labels_without_changing_the_episode():
     # The oracle's own direction moves the part. Probing it predicts the step
     # exactly, which also shows the probes left the state as it was.
     assert (first["r_dist"][:, 0] > 0.05).all(), first["r_dist"][:, 0]
-    _, labels, _ = vec.step_direction(dirs[:, 0])
+    _, labels, info = vec.step_direction(dirs[:, 0])
     np.testing.assert_array_equal(labels["r_dist"], first["r_dist"][:, 0])
+    np.testing.assert_array_equal(labels["train_aot"], first["train_aot"][:, 0])
+    assert info["reached_boundary"].dtype == bool and info["reached_init"].dtype == bool
     with pytest.raises(ValueError, match=r"expected \(3, K, 3\)"):
         vec.probe_directions(np.zeros((2, 4, 3), dtype=np.float32))
     with pytest.raises(ValueError, match="non-zero"):
         vec.probe_directions(np.zeros((3, 4, 3), dtype=np.float32))
+
+
+def test_training_labels_use_the_reference_thresholds():
+    vec = umpnet.VecEnv(4, category=["StorageFurniture", "Microwave"], resolution=RES, seed=9)
+    vec.reset()
+    _, pos = vec.step_position(np.array(vec.scripted_actions("oracle")))
+    assert pos["limits"].shape == (4, 2) and pos["threshold"].shape == (4,)
+    dirs = np.random.default_rng(1).normal(size=(4, 32, 3)).astype(np.float32)
+    probe = vec.probe_directions(dirs)
+    # moved <=> |dj| > 0.1 rad / 0.05 m or > range/3.5, i.e. above the threshold;
+    # from the start every move counts as forward.
+    thr = pos["threshold"][:, None]
+    np.testing.assert_array_equal(probe["train_moved"], probe["r_dist"] > thr)
+    np.testing.assert_array_equal(probe["train_aot"], probe["train_moved"].astype(np.int64))
+    # Between the threshold and delta the paper's text says "no change": the
+    # training labels are what the released code trains on.
+    between = (probe["r_dist"] > thr) & (probe["r_dist"] <= 0.15)
+    assert between.any(), probe["r_dist"]
+    assert (probe["aot"][between] == 0).all() and (probe["train_aot"][between] == 1).all()

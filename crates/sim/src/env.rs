@@ -7,12 +7,10 @@ use crate::math::{Mat4, Pose3, Quat, Vec3};
 use crate::physics::{Articulation, PhysicsConfig};
 use crate::render::{Frame, RenderMesh, Renderer, Segment, gripper_mesh, plane_mesh};
 use crate::scene::{Scene, Task};
-use crate::urdf::ObjectModel;
+use crate::urdf::{JointKind, ObjectModel};
 use std::sync::Arc;
 
-/// δ: the smallest joint change that counts as a state change — 0.15 m for
-/// prismatic joints, 8.6° = 0.15 rad for revolute ones.
-pub const DELTA: f32 = 0.15;
+pub use crate::labels::{DELTA, StepLabels, TrainLabels, labels};
 
 /// The object id used in segment ids.
 pub const OBJECT_ID: u32 = 1;
@@ -29,21 +27,6 @@ pub enum Pick {
     },
     /// Background, floor, gripper or a fixed link: nothing to grasp.
     NoMovableLink,
-}
-
-/// Labels of one executed direction (definitions in DESIGN.md).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct StepLabels {
-    pub joint_before: f32,
-    pub joint_after: f32,
-    /// |j_t - j_{t-1}|
-    pub r_dist: f32,
-    /// Arrow of Time: 0 (no effective change), +1 (away from the start), -1 (back).
-    pub aot: i8,
-    pub moved: bool,
-    pub reached_limit: bool,
-    pub back_at_start: bool,
-    pub suction_lost: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -327,45 +310,9 @@ fn act(
         g.j0,
         jm.lower,
         jm.upper,
+        jm.kind == JointKind::Prismatic,
         out.suction_lost,
     ))
-}
-
-/// The paper's labels for one action (pure function, tested on its own).
-pub fn labels(
-    before: f32,
-    after: f32,
-    j0: f32,
-    lower: f32,
-    upper: f32,
-    suction_lost: bool,
-) -> StepLabels {
-    let r_dist = (after - before).abs();
-    // A move from (numerically) the start is forward by definition.
-    let from_start = if (before - j0).abs() < 1e-3 {
-        0.0
-    } else {
-        before - j0
-    };
-    let gamma = (after - before) * from_start;
-    let aot = if r_dist <= DELTA {
-        0
-    } else if gamma >= 0.0 {
-        1
-    } else {
-        -1
-    };
-    let tol = 1e-3 + 1e-3 * (upper - lower).abs().min(10.0);
-    StepLabels {
-        joint_before: before,
-        joint_after: after,
-        r_dist,
-        aot,
-        moved: r_dist > DELTA / 10.0,
-        reached_limit: (after - lower).abs() < tol || (after - upper).abs() < tol,
-        back_at_start: (after - j0).abs() <= DELTA,
-        suction_lost,
-    }
 }
 
 /// The object's visuals plus floor and gripper, in part slots: links, then plane, then gripper.
@@ -387,24 +334,4 @@ pub fn render_meshes(model: &ObjectModel) -> Vec<RenderMesh> {
     meshes.push(plane_mesh(n));
     meshes.push(gripper_mesh(n + 1));
     meshes
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn aot_labels_follow_the_definition() {
-        // Forward from the start, forward again, back, no change.
-        assert_eq!(labels(0.0, 0.3, 0.0, 0.0, 1.5, false).aot, 1);
-        assert_eq!(labels(0.3, 0.6, 0.0, 0.0, 1.5, false).aot, 1);
-        assert_eq!(labels(0.6, 0.3, 0.0, 0.0, 1.5, false).aot, -1);
-        assert_eq!(labels(0.6, 0.7, 0.0, 0.0, 1.5, false).aot, 0);
-        // Starting mid-range and going down first is also "forward".
-        assert_eq!(labels(0.8, 0.5, 0.8, 0.0, 1.5, false).aot, 1);
-        assert_eq!(labels(0.5, 0.8, 0.8, 0.0, 1.5, false).aot, -1);
-        let l = labels(1.2, 1.5, 0.0, 0.0, 1.5, false);
-        assert!(l.reached_limit && !l.back_at_start);
-        assert!(labels(0.3, 0.1, 0.0, 0.0, 1.5, false).back_at_start);
-    }
 }

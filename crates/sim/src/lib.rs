@@ -11,6 +11,7 @@ pub mod urdf;
 pub use error::{Result, SimError};
 pub mod camera;
 pub mod env;
+pub mod labels;
 pub mod objects;
 pub mod render;
 pub mod scene;

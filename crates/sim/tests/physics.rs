@@ -263,6 +263,7 @@ fn scripted_back_and_forth_gives_the_defined_aot_labels() {
             j0,
             jm.lower,
             jm.upper,
+            true,
             o.suction_lost,
         );
         assert!((l.r_dist - (o.joint_after - o.joint_before).abs()).abs() < 1e-6);

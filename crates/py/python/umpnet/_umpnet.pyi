@@ -5,6 +5,8 @@ import numpy as np
 
 Observation: TypeAlias = dict[str, np.ndarray]
 
+def categories() -> list[tuple[str, str, int]]: ...
+
 class Env:
     def __init__(
         self,
