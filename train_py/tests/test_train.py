@@ -288,3 +288,18 @@ def test_diagnostic_measures_on_known_values():
     np.testing.assert_allclose(diagnose.progress(0.5, np.array([0.8, 0.2]), 0.0, 1.0, "exploration"), [0.3, -0.3])
     np.testing.assert_allclose(diagnose.progress(0.5, np.array([0.8, 0.2]), 0.0, 1.0, "goal"), [0.3, -0.3])
     np.testing.assert_allclose(diagnose.progress(0.5, np.array([0.8, 0.2]), 0.0, 0.0, "goal"), [-0.3, 0.3])
+
+
+def test_periodic_evaluation_logs_the_diagnostics(tmp_path):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    out = tmp_path / "run"
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "1", "--eval-every", "1"]) == 0
+    tags = EventAccumulator(str(out / "tb")).Reload().Tags()["scalars"]
+    for tag in (
+        "diagnose/test/goal/aot_accuracy",
+        "diagnose/train/exploration/position_validity",
+        "diagnose/test/goal_success/learned/oracle",
+    ):
+        assert tag in tags, sorted(tags)
+    assert any(t.startswith("eval/goal/") for t in tags), sorted(tags)

@@ -63,6 +63,7 @@ class Config:
     checkpoint_every: int = 50
     save_replay: bool = False  # also write OUT/replay.npz at checkpoints (large: 6400 images per ring)
     eval_every: int = 0
+    eval_episodes: int = 5  # per category in `umpnet eval`; twice as many per split in the diagnostics
     threads: int = 2
     renderer: str = "auto"
     device: str = "auto"  # auto (cuda when available), cpu, cuda
@@ -113,6 +114,7 @@ PRESETS = {
         "iterations_per_epoch": 2,
         "lr": 1e-3,
         "checkpoint_every": 1,
+        "eval_episodes": 1,
     },
 }
 

@@ -365,7 +365,7 @@ def evaluate(model, cfg, out: Path, umpnet_bin: str, writer, epoch: int):
     export_model(copy, cfg, package, {"note": "periodic evaluation"})
     for task in ["exploration", "goal"]:
         res = subprocess.run(
-            [umpnet_bin, "--json", "eval", "--task", task, "--split", "train", "--episodes-per-category", "5",
+            [umpnet_bin, "--json", "eval", "--task", task, "--split", "train", "--episodes-per-category", str(cfg.eval_episodes),
              "--policies", f"umpnet={package}", "--physics", cfg.physics],
             capture_output=True, text=True, check=False,
         )  # fmt: skip
@@ -376,6 +376,23 @@ def evaluate(model, cfg, out: Path, umpnet_bin: str, writer, epoch: int):
         for metric in {c["metric"] for c in cells}:
             values = [c["mean"] for c in cells if c["metric"] == metric]
             writer.add_scalar(f"eval/{task}/{metric}", float(np.mean(values)), epoch)
+    # The diagnostics (umpnet_train.diagnose) on a few held-out episodes: where the
+    # policy loses, as training goes.
+    from .diagnose import diagnose
+
+    try:
+        report = diagnose(package, episodes=2 * cfg.eval_episodes, seed=cfg.seed, physics=cfg.physics)
+    except (ValueError, RuntimeError) as e:
+        print(f"warning: diagnostics failed: {e}", file=sys.stderr)
+        return
+    for split, tasks in report["splits"].items():
+        for task in ("exploration", "goal"):
+            for key, value in tasks[task].items():
+                if key not in ("episodes", "states", "success") and value is not None:
+                    writer.add_scalar(f"diagnose/{split}/{task}/{key}", value, epoch)
+        for combo, value in tasks["swap"].items():
+            if value is not None:
+                writer.add_scalar(f"diagnose/{split}/goal_success/{combo}", value, epoch)
 
 
 def main(argv=None) -> int:

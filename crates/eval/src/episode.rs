@@ -231,24 +231,13 @@ fn metrics(
                 / scored.max(1) as f32;
             match protocol {
                 Protocol::Paper => {
-                    // The reference's signed walk: a step back toward the start
-                    // (once more than 0.02 away) counts negative.
                     let scale = if env.model().joints[j].kind.is_prismatic() {
                         scene.pose.scale
                     } else {
                         1.0
                     };
-                    let mut walk = 0.0f32;
-                    let mut visited = Vec::with_capacity(scored);
-                    let mut before = start;
-                    for t in 0..scored {
-                        let now = value_at(t);
-                        let from_start = before - start;
-                        let back = from_start.abs() > 0.02 && from_start * (now - before) < 0.0;
-                        walk += if back { -1.0 } else { 1.0 } * (now - before).abs();
-                        visited.push(walk.abs() / scale);
-                        before = now;
-                    }
+                    let values: Vec<f32> = (0..scored).map(value_at).collect();
+                    let visited = protocol::paper_walk(start, &values, scale);
                     m.unique_states = (0..budget)
                         .map(|t| {
                             protocol::paper_unique_states(&visited[..(t + 1).min(scored)]) as f32

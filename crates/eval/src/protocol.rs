@@ -79,6 +79,25 @@ pub fn reached_goal(before: f32, after: f32, goal: f32, threshold: f32) -> bool 
         || (before < goal && after > goal - threshold)
 }
 
+/// The states the paper's exploration metric visits: after each of `values`
+/// (the joint after each step), the reference's signed walk from `start` (a
+/// step back toward the start, once more than 0.02 away, counts negative),
+/// its absolute value divided by `scale` (the object's for prismatic joints).
+pub fn paper_walk(start: f32, values: &[f32], scale: f32) -> Vec<f32> {
+    let mut walk = 0.0f32;
+    let mut before = start;
+    values
+        .iter()
+        .map(|&now| {
+            let from_start = before - start;
+            let back = from_start.abs() > 0.02 && from_start * (now - before) < 0.0;
+            walk += if back { -1.0 } else { 1.0 } * (now - before).abs();
+            before = now;
+            walk.abs() / scale
+        })
+        .collect()
+}
+
 /// The paper's count of unique states: over the sorted values, greedily, a
 /// value counts when it is more than δ above the last counted one.
 pub fn paper_unique_states(visited: &[f32]) -> usize {
@@ -113,6 +132,18 @@ pub fn strict_unique_states(start: f32, values: &[f32]) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn paper_walk_counts_returns_negative_and_divides_by_the_scale() {
+        let w = paper_walk(0.0, &[0.13, 0.26, 0.13, 0.3], 0.5);
+        let expected = [0.26, 0.52, 0.26, 0.6];
+        for (a, b) in w.iter().zip(expected) {
+            assert!((a - b).abs() < 1e-6, "{w:?}");
+        }
+        // Within 0.02 of the start every move counts forward.
+        let w = paper_walk(0.0, &[0.01, -0.1], 1.0);
+        assert!((w[1] - 0.12).abs() < 1e-6, "{w:?}");
+    }
 
     #[test]
     fn paper_unique_states_counts_greedily_over_sorted_values() {

@@ -1,6 +1,7 @@
 //! Policies that need no learning: `random` (the lower bound) and `oracle`
 //! (privileged ground truth; the upper bound).
 use crate::policy::{Decision, Observation, Policy, StepRecord};
+use crate::protocol;
 use crate::{EvalError, Result};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -64,13 +65,32 @@ impl Policy for RandomPolicy {
 
 /// Uses the true joint axes and limits: grasps where the lever is longest and
 /// moves along the joint's motion, toward novel states or toward the goal.
-#[derive(Default)]
 pub struct OraclePolicy {
     /// +1 or -1: the sign of joint motion currently pursued (exploration).
     sign: f32,
+    /// Plan exploration steps on the simulator (see `plan_exploration_step`).
+    plan: bool,
+}
+
+impl Default for OraclePolicy {
+    fn default() -> Self {
+        Self {
+            sign: 0.0,
+            plan: true,
+        }
+    }
 }
 
 impl OraclePolicy {
+    /// The oracle without planning: every step pulls along the joint's motion
+    /// (a fixed action for benchmarks).
+    pub fn plain() -> Self {
+        Self {
+            sign: 0.0,
+            plan: false,
+        }
+    }
+
     /// Direction that moves `joint` in the + sense at the grasped point.
     fn motion_direction(env: &SimEnv, joint: usize) -> Option<Vec3> {
         let art = env.articulation();
@@ -163,6 +183,15 @@ impl Policy for OraclePolicy {
                 {
                     self.sign = -self.sign; // bounce off a limit
                 }
+                if self.plan
+                    && let Some(planned) =
+                        plan_exploration_step(env, joint, dir, self.sign, history)?
+                {
+                    return Ok(Decision::Move {
+                        direction: planned,
+                        candidates: None,
+                    });
+                }
                 self.sign
             }
         };
@@ -171,4 +200,100 @@ impl Policy for OraclePolicy {
             candidates: None,
         })
     }
+}
+
+/// Tilts of the pull away from the joint's motion: a tilted pull moves the
+/// part less (the mount holds its line), which is how the oracle sets a
+/// step's length.
+const TILTS_DEG: [f32; 8] = [0.0, 20.0, 35.0, 45.0, 55.0, 62.0, 70.0, 78.0];
+
+/// The exploration oracle's step, planned on the simulator: the tilts of the
+/// joint's motion (both senses) are simulated on copies of the articulation
+/// and scored by the paper's metric one step ahead:
+/// 1. a new state that ends the episode at the limit;
+/// 2. a new state that leaves a last step long enough to be new too;
+/// 3. any new state; 4. the end of the episode; then the longest move.
+///
+/// Without it, a free pull's fixed length (about 0.13 m) often leaves a gap
+/// to the limit too short for a new state and too long to end the episode,
+/// and one step in three is wasted on short sliders. None when no simulated
+/// step moves the part (the caller's bounce takes over).
+fn plan_exploration_step(
+    env: &SimEnv,
+    joint: usize,
+    motion: Vec3,
+    sign: f32,
+    history: &[StepRecord],
+) -> Result<Option<Vec3>> {
+    let jm = &env.model().joints[joint];
+    let Some(start) = env.grasp_start_value() else {
+        return Ok(None);
+    };
+    let prismatic = jm.kind.is_prismatic();
+    let scale = if prismatic {
+        env.scene().pose.scale
+    } else {
+        1.0
+    };
+    let thr = protocol::threshold(prismatic, jm.lower, jm.upper);
+    let values: Vec<f32> = history.iter().map(|s| s.labels.joint_after).collect();
+    let walk = protocol::paper_walk(start, &values, scale);
+    let count = protocol::paper_unique_states(&walk);
+    let gap_is_dead = |after: f32| {
+        // A gap to the heading limit that no step can both end and count.
+        let gap = if after >= start {
+            jm.upper - after
+        } else {
+            after - jm.lower
+        };
+        gap > thr && gap <= DELTA * scale
+    };
+    let score = |candidates: &[Vec3]| -> Result<Option<(u8, f32, Vec3)>> {
+        let labels = env.probe_directions(candidates)?;
+        let mut best: Option<(u8, f32, Vec3)> = None;
+        for (dir, l) in candidates.iter().zip(&labels) {
+            if l.r_dist < 1e-4 {
+                continue;
+            }
+            let mut next = values.clone();
+            next.push(l.joint_after);
+            let new =
+                protocol::paper_unique_states(&protocol::paper_walk(start, &next, scale)) > count;
+            let ends = protocol::reached_limit(l.joint_after, start, jm.lower, jm.upper, thr);
+            let rank = match (new, ends) {
+                (true, true) => 4,
+                (true, false) if !gap_is_dead(l.joint_after) => 3,
+                (true, false) => 2,
+                (false, true) => 1,
+                (false, false) => 0,
+            };
+            if best.is_none_or(|(r, d, _)| (rank, l.r_dist) > (r, d)) {
+                best = Some((rank, l.r_dist, *dir));
+            }
+        }
+        Ok(best)
+    };
+    // The plain pull first: most steps need nothing else.
+    if let Some(b) = score(&[motion * sign])?.filter(|(rank, ..)| *rank >= 3) {
+        return Ok(Some(b.2));
+    }
+    let up = if motion.z.abs() < 0.9 {
+        Vec3::Z
+    } else {
+        Vec3::X
+    };
+    let side = (up - motion * up.dot(motion)).normalize();
+    let other = motion.cross(side);
+    let mut candidates = Vec::with_capacity(2 * (1 + 4 * (TILTS_DEG.len() - 1)));
+    for s in [sign, -sign] {
+        candidates.push(motion * s);
+        for deg in &TILTS_DEG[1..] {
+            let (sin, cos) = deg.to_radians().sin_cos();
+            for towards in [side, -side, other, -other] {
+                candidates.push((motion * (s * cos) + towards * sin).normalize());
+            }
+        }
+    }
+    let best = score(&candidates)?;
+    Ok(best.filter(|(rank, ..)| *rank > 0).map(|(.., d)| d))
 }

@@ -318,15 +318,13 @@ impl ReferenceArticulation {
 
         // Each chain joint's axis and origin in world, and its motion subspace
         // at a point: v = axis x (p - origin) for a hinge, axis for a slider.
-        let axes: Vec<(JointKind, Vec3, Vec3)> = s
-            .chain
-            .iter()
-            .map(|&j| {
-                let jm = &self.model.joints[j];
-                let pose = self.world_from_link[jm.parent] * jm.parent_from_joint;
-                (jm.kind, pose.rotation * jm.axis_in_joint, pose.translation)
-            })
-            .collect();
+        // Fixed-size: this runs at every 1/240 s step, hundreds of times per action.
+        let mut axes = [(JointKind::Fixed, Vec3::ZERO, Vec3::ZERO); MAX_CHAIN];
+        for (slot, &j) in axes.iter_mut().zip(&s.chain) {
+            let jm = &self.model.joints[j];
+            let pose = self.world_from_link[jm.parent] * jm.parent_from_joint;
+            *slot = (jm.kind, pose.rotation * jm.axis_in_joint, pose.translation);
+        }
         let linear = |a: usize, at: Vec3| -> Vec3 {
             let (kind, axis, origin) = axes[a];
             if kind.is_prismatic() {
@@ -458,7 +456,9 @@ impl ReferenceArticulation {
         self.rows = rows;
 
         let max_speed = self.params.max_joint_speed as f64;
-        let chain = s.chain.clone();
+        let mut chain_buf = [0usize; MAX_CHAIN];
+        chain_buf[..n].copy_from_slice(&s.chain);
+        let chain = &chain_buf[..n];
         for (a, &j) in chain.iter().enumerate() {
             let v = x[a].clamp(-max_speed, max_speed) as f32;
             self.qd[j] = v;
@@ -468,7 +468,7 @@ impl ReferenceArticulation {
             m.velocity = Vec3::new(x[n] as f32, x[n + 1] as f32, x[n + 2] as f32);
             m.position += m.velocity * h;
         }
-        self.refresh_chain(&chain);
+        self.refresh_chain(chain);
     }
 
     /// Re-poses the links below the first chain joint (the rest did not move).
