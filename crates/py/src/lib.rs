@@ -39,9 +39,25 @@ fn array<'py>(py: Python<'py>, data: Vec<f32>, shape: &[usize]) -> PyResult<Boun
         .into_any())
 }
 
+/// `category=` takes one name or a list of names.
+#[derive(FromPyObject)]
+enum Categories {
+    One(String),
+    Many(Vec<String>),
+}
+
+impl Categories {
+    fn names(self) -> Vec<String> {
+        match self {
+            Categories::One(c) => vec![c],
+            Categories::Many(c) => c,
+        }
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn make_config(
-    category: Option<Vec<String>>,
+    category: Option<Categories>,
     split: &str,
     resolution: (u32, u32),
     task: &str,
@@ -76,7 +92,12 @@ fn make_config(
     cfg.renderer = renderer
         .parse()
         .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
-    if let Some(names) = category {
+    if let Some(names) = category.map(Categories::names) {
+        if names.is_empty() {
+            return Err(PyValueError::new_err(
+                "category: expected a category name or a non-empty list of names",
+            ));
+        }
         cfg.categories = names
             .iter()
             .map(|n| {
@@ -219,7 +240,7 @@ impl Env {
     #[pyo3(signature = (category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        category: Option<Vec<String>>,
+        category: Option<Categories>,
         split: &str,
         seed: u64,
         resolution: (u32, u32),
@@ -360,8 +381,13 @@ fn stack<'py>(
     let mut reference = Vec::with_capacity(n * h * w * c);
     let mut seg = Vec::with_capacity(n * h * w);
     let mut gp = Vec::with_capacity(2 * n);
+    let mut intrinsics = Vec::with_capacity(9 * n);
+    let mut world_from_camera = Vec::with_capacity(16 * n);
     for (o, r) in obs.iter().zip(refs) {
         image.extend(o.image.iter().copied());
+        let [fx, fy, cx, cy] = o.intrinsics;
+        intrinsics.extend([fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]);
+        world_from_camera.extend(o.world_from_camera.iter().flatten().copied());
         match r {
             Some(r) => reference.extend(r.iter().copied()),
             None => reference.extend(std::iter::repeat_n(0.0, h * w * c)),
@@ -383,6 +409,11 @@ fn stack<'py>(
         "gripper_pixel",
         PyArray1::from_vec(py, gp).reshape(vec![n, 2])?,
     )?;
+    d.set_item("intrinsics", array(py, intrinsics, &[n, 3, 3])?)?;
+    d.set_item(
+        "world_from_camera",
+        array(py, world_from_camera, &[n, 4, 4])?,
+    )?;
     Ok(d)
 }
 
@@ -393,7 +424,7 @@ impl VecEnv {
     #[allow(clippy::too_many_arguments)]
     fn new(
         n: usize,
-        category: Option<Vec<String>>,
+        category: Option<Categories>,
         split: &str,
         seed: u64,
         resolution: (u32, u32),
@@ -500,7 +531,10 @@ impl VecEnv {
         let (obs, infos): (Vec<_>, Vec<_>) = out.into_iter().unzip();
         let refs: Vec<_> = self.envs.iter().map(|e| e.reference()).collect();
         let info = PyDict::new(py);
-        info.set_item("valid", infos.iter().map(|i| i.valid).collect::<Vec<_>>())?;
+        info.set_item(
+            "valid",
+            PyArray1::from_vec(py, infos.iter().map(|i| i.valid).collect::<Vec<_>>()),
+        )?;
         info.set_item(
             "joint",
             infos
@@ -584,9 +618,12 @@ impl VecEnv {
         )?;
         labels.set_item(
             "moved",
-            out.iter()
-                .map(|(_, l)| l.as_ref().is_some_and(|l| l.moved))
-                .collect::<Vec<_>>(),
+            PyArray1::from_vec(
+                py,
+                out.iter()
+                    .map(|(_, l)| l.as_ref().is_some_and(|l| l.moved))
+                    .collect::<Vec<_>>(),
+            ),
         )?;
         labels.set_item(
             "train_aot",
@@ -607,7 +644,7 @@ impl VecEnv {
         let info = PyDict::new(py);
         info.set_item(
             "active",
-            out.iter().map(|(_, l)| l.is_some()).collect::<Vec<_>>(),
+            PyArray1::from_vec(py, out.iter().map(|(_, l)| l.is_some()).collect::<Vec<_>>()),
         )?;
         info.set_item(
             "joint_after",
@@ -615,9 +652,7 @@ impl VecEnv {
         )?;
         info.set_item(
             "suction_lost",
-            out.iter()
-                .map(|(_, l)| l.as_ref().is_some_and(|l| l.suction_lost))
-                .collect::<Vec<_>>(),
+            PyArray1::from_vec(py, flag(&|l| l.suction_lost)),
         )?;
         info.set_item(
             "reached_boundary",

@@ -127,7 +127,7 @@ pub(crate) fn labels_dict<'py>(
     )?;
     d.set_item(
         "active",
-        labels.iter().map(|l| l.is_some()).collect::<Vec<_>>(),
+        PyArray1::from_vec(py, labels.iter().map(|l| l.is_some()).collect::<Vec<_>>()),
     )?;
     Ok(d)
 }

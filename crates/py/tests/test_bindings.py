@@ -292,3 +292,24 @@ def test_training_labels_use_the_reference_thresholds():
     between = (probe["r_dist"] > thr) & (probe["r_dist"] <= 0.15)
     assert between.any(), probe["r_dist"]
     assert (probe["aot"][between] == 0).all() and (probe["train_aot"][between] == 1).all()
+
+
+def test_vecenv_observations_and_info_match_env_and_are_numpy():
+    # One category by name works as a list of one does.
+    single = umpnet.Env(category="Microwave", resolution=RES, seed=2)
+    vec = umpnet.VecEnv(2, category="Microwave", resolution=RES, seed=2)
+    obs = vec.reset()
+    first = single.reset()
+    assert obs["intrinsics"].shape == (2, 3, 3) and obs["world_from_camera"].shape == (2, 4, 4)
+    # The same seed gives the same scene, so the same camera, as Env's.
+    np.testing.assert_array_equal(obs["intrinsics"][0], first["intrinsics"])
+    np.testing.assert_array_equal(obs["world_from_camera"][0], first["world_from_camera"])
+    _, info = vec.step_position(np.array(vec.scripted_actions("oracle")))
+    assert isinstance(info["valid"], np.ndarray) and info["valid"].dtype == bool
+    _, labels, sinfo = vec.step_direction(np.array(vec.scripted_actions("oracle"), dtype=np.float32))
+    for flags in (labels["moved"], sinfo["active"], sinfo["suction_lost"]):
+        assert isinstance(flags, np.ndarray) and flags.dtype == bool and flags.shape == (2,)
+    with pytest.raises(ValueError, match="non-empty list"):
+        umpnet.VecEnv(2, category=[])
+    with pytest.raises(ValueError, match="Cupboard"):
+        umpnet.Env(category="Cupboard")

@@ -10,7 +10,7 @@ def categories() -> list[tuple[str, str, int]]: ...
 class Env:
     def __init__(
         self,
-        category: Sequence[str] | None = None,
+        category: str | Sequence[str] | None = None,
         split: str = "train",
         seed: int = 0,
         resolution: tuple[int, int] = (96, 128),
@@ -33,7 +33,7 @@ class VecEnv:
     def __init__(
         self,
         n: int,
-        category: Sequence[str] | None = None,
+        category: str | Sequence[str] | None = None,
         split: str = "train",
         seed: int = 0,
         resolution: tuple[int, int] = (96, 128),
