@@ -1,17 +1,23 @@
-//! Median physics time of one 0.18 m action on a generated cabinet.
+//! Physics time of one 0.18 m action (reference profile) on a generated
+//! drawer and a generated door: the figures `umpnet bench` reports, without
+//! the renderer and the episode around them.
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::sync::Arc;
 use umpnet_sim::math::{Pose3, Vec3};
 use umpnet_sim::objects::{Category, generate};
 use umpnet_sim::physics::{Articulation, PhysicsConfig};
+use umpnet_sim::urdf::JointKind;
 
-fn action(c: &mut Criterion) {
+fn bench_category(c: &mut Criterion, category: Category, kind: JointKind, label: &str) {
     let model = Arc::new(
-        generate(Category::StorageFurniture, 0, 0)
+        generate(category, 0, 0)
             .model()
-            .expect("generated cabinet loads"),
+            .expect("generated object loads"),
     );
-    let (j, jm) = model.movable_joints().next().expect("a movable joint");
+    let (j, jm) = model
+        .movable_joints()
+        .find(|(_, jm)| jm.kind == kind)
+        .expect("a joint of the wanted kind");
     let mut art = Articulation::new(
         model.clone(),
         Pose3::from_translation(Vec3::new(0.0, -0.5, 0.0)),
@@ -25,7 +31,7 @@ fn action(c: &mut Criterion) {
     };
     art.attach(centre, link).expect("attach");
     let mut sign = 1.0f32;
-    c.bench_function("physics: one 0.18 m action on a cabinet", |b| {
+    c.bench_function(&format!("physics: one 0.18 m action on {label}"), |b| {
         b.iter(|| {
             let (axis, origin) = art.joint_axis_in_world(j);
             let g = art.gripper_position().unwrap_or(centre);
@@ -43,6 +49,16 @@ fn action(c: &mut Criterion) {
             }
         })
     });
+}
+
+fn action(c: &mut Criterion) {
+    bench_category(
+        c,
+        Category::StorageFurniture,
+        JointKind::Prismatic,
+        "a drawer",
+    );
+    bench_category(c, Category::Refrigerator, JointKind::Revolute, "a door");
 }
 
 criterion_group!(benches, action);
