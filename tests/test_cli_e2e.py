@@ -127,6 +127,15 @@ def test_learned_policy_episode_and_infer(tmp_path):
     bad = run("infer", "--rgb", str(tmp_path / "color.png"), "--depth", str(tmp_path / "depth.npy"),
               "--intrinsics", "1,2", "--camera-pose", pose, "--model", fixture, check=False)  # fmt: skip
     assert bad.returncode == 2 and "--intrinsics" in bad.stderr
+    # Broken depth files are errors that name the file, never a panic.
+    data = (tmp_path / "depth.npy").read_bytes()
+    v2 = data[:6] + b"\x02\x00" + (len(data) - 10).to_bytes(4, "little")[:2]  # a version-2 header cut short
+    for name, content in [("truncated.npy", data[:40]), ("v2.npy", v2), ("short.npy", data[:11])]:
+        (tmp_path / name).write_bytes(content)
+        bad = run("infer", "--rgb", str(tmp_path / "color.png"), "--depth", str(tmp_path / name),
+                  "--intrinsics", f"{k['fx']},{k['fy']},{k['cx']},{k['cy']}", "--camera-pose", pose,
+                  "--model", fixture, check=False)  # fmt: skip
+        assert bad.returncode == 1 and name in bad.stderr and "panicked" not in bad.stderr, (name, bad.stderr)
 
 
 BASELINES = ["single-step", "aot-only", "signed-dist", "where2act", "where2act-normal90", "inverse"]

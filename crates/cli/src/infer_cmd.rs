@@ -44,15 +44,26 @@ fn read_npy(path: &Path, scale: f32) -> Result<(usize, usize, Vec<f32>)> {
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
         bail!("{}: not a .npy file", path.display());
     }
-    let (hlen, start) = if bytes[6] == 1 {
-        (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10)
-    } else {
-        (
-            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
-            12,
-        )
+    // Version 1 has a 2-byte header length at 8; versions 2 and 3 a 4-byte one.
+    let (hlen, start): (usize, usize) = match (bytes[6], bytes.get(8..12)) {
+        (1, _) => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        (2 | 3, Some(&[a, b, c, d])) => (u32::from_le_bytes([a, b, c, d]) as usize, 12),
+        (v, _) => bail!(
+            "{}: unsupported or truncated .npy header (version {v}); expected version 1, 2 or 3",
+            path.display()
+        ),
     };
-    let header = String::from_utf8_lossy(&bytes[start..start + hlen]);
+    let Some(header_bytes) = start
+        .checked_add(hlen)
+        .and_then(|end| bytes.get(start..end))
+    else {
+        bail!(
+            "{}: truncated .npy file: the header says {hlen} bytes, the file has {}",
+            path.display(),
+            bytes.len().saturating_sub(start)
+        );
+    };
+    let header = String::from_utf8_lossy(header_bytes);
     let shape_txt = header
         .split("'shape':")
         .nth(1)
@@ -84,7 +95,7 @@ fn read_npy(path: &Path, scale: f32) -> Result<(usize, usize, Vec<f32>)> {
             path.display()
         );
     };
-    if values.len() != dims[0] * dims[1] {
+    if Some(values.len()) != dims[0].checked_mul(dims[1]) {
         bail!(
             "{}: {} values for shape {dims:?}",
             path.display(),
