@@ -20,6 +20,11 @@ use umpnet_sim::env::StepLabels;
 use umpnet_sim::objects::{Category, InstanceSplit};
 use umpnet_sim::scene::{Scene, Task};
 
+/// Bounds on what a caller may ask for: far above any machine's use, far below
+/// what exhausts memory or threads.
+const MAX_ENVS: usize = 4096;
+const MAX_THREADS: usize = 1024;
+
 fn runtime_err(e: impl std::fmt::Display) -> PyErr {
     PyRuntimeError::new_err(e.to_string())
 }
@@ -434,8 +439,10 @@ impl VecEnv {
         dataset_seed: u64,
         physics: &str,
     ) -> PyResult<Self> {
-        if n == 0 {
-            return Err(PyValueError::new_err("n must be at least 1"));
+        if !(1..=MAX_ENVS).contains(&n) {
+            return Err(PyValueError::new_err(format!(
+                "n = {n}: expected 1 to {MAX_ENVS} environments"
+            )));
         }
         let cfg = make_config(
             category,
@@ -706,6 +713,11 @@ impl Policy {
     #[pyo3(signature = (model_dir, seed=0, threads=1))]
     fn new(model_dir: PathBuf, seed: u64, threads: usize) -> PyResult<Self> {
         use rand::SeedableRng;
+        if !(1..=MAX_THREADS).contains(&threads) {
+            return Err(PyValueError::new_err(format!(
+                "threads = {threads}: expected 1 to {MAX_THREADS}"
+            )));
+        }
         let pkg = ModelPackage::load(&model_dir, 1, threads, None).map_err(runtime_err)?;
         Ok(Self {
             inner: UmpnetPolicy::new(Arc::new(pkg)),

@@ -3,6 +3,7 @@
 import json
 import os
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -313,3 +314,12 @@ def test_vecenv_observations_and_info_match_env_and_are_numpy():
         umpnet.VecEnv(2, category=[])
     with pytest.raises(ValueError, match="Cupboard"):
         umpnet.Env(category="Cupboard")
+
+
+def test_absurd_sizes_are_value_errors_not_crashes():
+    with pytest.raises(ValueError, match="expected 1 to 4096 environments"):
+        umpnet.VecEnv(2**62)
+    with pytest.raises(ValueError, match="n = 0"):
+        umpnet.VecEnv(0)
+    with pytest.raises(ValueError, match="threads = 100000"):
+        umpnet.Policy(str(Path(__file__).resolve().parents[3] / "models" / "umpnet-small"), threads=100000)
