@@ -54,6 +54,15 @@ impl UmpnetPolicy {
         observation: ArrayView3<f32>,
         goal: Option<ArrayView3<f32>>,
     ) -> Result<PositionChoice> {
+        if let Some(g) = &goal
+            && g.shape() != observation.shape()
+        {
+            return Err(PolicyError::Input(format!(
+                "goal observation has shape {:?}, expected the observation's {:?}",
+                g.shape(),
+                observation.shape()
+            )));
+        }
         let obs4 = observation.insert_axis(Axis(0));
         let aff = self.package.position(obs4)?.index_axis_move(Axis(0), 0);
         let (h, w) = (aff.shape()[0], aff.shape()[1]);

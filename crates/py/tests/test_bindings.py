@@ -323,3 +323,13 @@ def test_absurd_sizes_are_value_errors_not_crashes():
         umpnet.VecEnv(0)
     with pytest.raises(ValueError, match="threads = 100000"):
         umpnet.Policy(str(Path(__file__).resolve().parents[3] / "models" / "umpnet-small"), threads=100000)
+
+
+def test_policy_position_rejects_a_goal_of_another_shape():
+    pol = umpnet.Policy(str(Path(__file__).resolve().parents[3] / "models" / "umpnet-small"))
+    h, w = pol.resolution
+    image = np.zeros((h, w, 10), np.float32)
+    image[..., 9] = 1.0
+    with pytest.raises(ValueError, match="goal observation has shape"):
+        pol.position(image, np.zeros((h // 2, w, 10), np.float32))
+    assert len(pol.position(image, image.copy())) == 2
