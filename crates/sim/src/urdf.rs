@@ -179,7 +179,49 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
         .collect();
     let robot = urdf_rs::read_from_string(&mended)
         .map_err(|e| urdf_err(path, format!("invalid URDF: {e}")))?;
+    check_finite(&robot, path)?;
     build_model(robot, path, &with_inertial, &joint_lines, meshes)
+}
+
+/// Every origin, inertia and geometry size must be a finite number: a NaN
+/// there passes the XML reader and poisons the physics silently (the joint
+/// comes back as NaN with exit 0).
+fn check_finite(robot: &urdf_rs::Robot, path: &Path) -> Result<()> {
+    let bad = |what: String, values: &[f64]| -> Result<()> {
+        if values.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(urdf_err(
+                path,
+                format!("{what} must be finite numbers, found {values:?}"),
+            ))
+        }
+    };
+    let origin = |what: String, o: &urdf_rs::Pose| -> Result<()> {
+        bad(
+            format!("{what} <origin xyz/rpy>"),
+            &[o.xyz.0, o.rpy.0].concat(),
+        )
+    };
+    for l in &robot.links {
+        let i = &l.inertial;
+        origin(format!("link `{}` <inertial>", l.name), &i.origin)?;
+        let t = &i.inertia;
+        bad(
+            format!("link `{}` <inertia>", l.name),
+            &[t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz],
+        )?;
+        for v in &l.visual {
+            origin(format!("link `{}` <visual>", l.name), &v.origin)?;
+        }
+        for c in &l.collision {
+            origin(format!("link `{}` <collision>", l.name), &c.origin)?;
+        }
+    }
+    for j in &robot.joints {
+        origin(format!("joint `{}`", j.name), &j.origin)?;
+    }
+    Ok(())
 }
 
 /// Writes the element back out as XML, fixing what PartNet-Mobility files get
@@ -701,5 +743,32 @@ mod tests {
             r#"{BASE}<joint name="j" type="floating"><parent link="base"/><child link="door"/></joint>"#
         ));
         assert!(e.contains("not supported"), "{e}");
+    }
+
+    #[test]
+    fn nan_or_infinite_origins_and_inertias_are_errors() {
+        let joint = r#"<joint name="j" type="revolute"><parent link="base"/><child link="door"/><axis xyz="0 0 1"/><limit lower="0" upper="1"/></joint>"#;
+        let e = err_of(&format!(
+            r#"<link name="base"><inertial><origin xyz="NaN 0 0"/><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial><visual><geometry><box size="1 1 1"/></geometry></visual></link>
+<link name="door"><visual><geometry><box size="0.1 1 1"/></geometry></visual></link>{joint}"#
+        ));
+        assert!(
+            e.contains("link `base` <inertial> <origin xyz/rpy> must be finite"),
+            "{e}"
+        );
+        let e = err_of(&format!(
+            r#"<link name="base"><inertial><mass value="1"/><inertia ixx="inf" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial><visual><geometry><box size="1 1 1"/></geometry></visual></link>
+<link name="door"><visual><geometry><box size="0.1 1 1"/></geometry></visual></link>{joint}"#
+        ));
+        assert!(e.contains("link `base` <inertia> must be finite"), "{e}");
+        let e = err_of(&format!(
+            r#"{BASE}<joint name="j" type="revolute"><origin xyz="0 0 0" rpy="0 NaN 0"/><parent link="base"/><child link="door"/><axis xyz="0 0 1"/><limit lower="0" upper="1"/></joint>"#
+        ));
+        assert!(
+            e.contains("joint `j` <origin xyz/rpy> must be finite"),
+            "{e}"
+        );
+        // The same file with finite numbers loads.
+        assert!(parse_urdf(&wrap(&format!("{BASE}{joint}")), Path::new("x.urdf")).is_ok());
     }
 }
