@@ -78,8 +78,7 @@ pub fn sample_visible_scene(
     object: ObjectSource,
     physics: PhysicsProfile,
 ) -> Result<Scene> {
-    let pose = object.pose()?;
-    let model = object.load()?.scaled(pose.scale)?;
+    let model = object.load_scaled()?;
     let mut last = None;
     // One environment for every try: `reset` keeps the loaded object and its meshes.
     let mut env: Option<SimEnv> = None;

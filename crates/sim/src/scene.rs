@@ -90,6 +90,12 @@ impl ObjectSource {
             ObjectSource::File { path } => load_urdf(path),
         }
     }
+
+    /// The object at scene size: its file scaled by its own pose's scale
+    /// (what a scene sampled for it will hold).
+    pub fn load_scaled(&self) -> Result<ObjectModel> {
+        self.load()?.scaled(self.pose()?.scale)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -14,11 +14,7 @@ fn grasped_env(c: Category, seed: u64) -> SimEnv {
         index: nth_instance(c, InstanceSplit::Test, 0),
         dataset_seed: 0,
     };
-    let model = object
-        .load()
-        .unwrap()
-        .scaled(object.pose().unwrap().scale)
-        .unwrap();
+    let model = object.load_scaled().unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let scene = sample_scene(&mut rng, Task::Exploration, Some(c), object, &model, None).unwrap();
     let mut env = SimEnv::new(

@@ -17,11 +17,7 @@ fn scene(c: Category, k: u32) -> umpnet_sim::scene::Scene {
         index: nth_instance(c, split, k),
         dataset_seed: 0,
     };
-    let model = object
-        .load()
-        .unwrap()
-        .scaled(object.pose().unwrap().scale)
-        .unwrap();
+    let model = object.load_scaled().unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(k as u64);
     sample_scene(&mut rng, Task::Exploration, Some(c), object, &model, None).unwrap()
 }
