@@ -34,10 +34,8 @@ from .models import UMPNet
 from .replay import DenseReplay, Replay
 
 OBJECT_SEGMENT = 1 << 16  # segment ids of object links start here
-TRAIN_CATEGORIES = [
-    "Refrigerator", "FoldingChair", "Laptop", "Stapler", "TrashCan", "Microwave",
-    "Toilet", "Window", "StorageFurniture", "Switch", "Kettle", "Toy",
-]  # fmt: skip
+# The categories training sees, in the paper's order (defined once, in Rust).
+TRAIN_CATEGORIES = [name for name, split, _ in umpnet.categories() if split == "train"]
 
 
 def epsilon(schedule: tuple[float, float], start_epoch: int, decay_epochs: int, epoch: int) -> float:
