@@ -178,3 +178,44 @@ def test_physics_and_protocol_switches_reach_the_episode_and_the_results(tmp_pat
     assert "oracle" in summary["policies"]  # the ceiling is always there
     bad = run("eval", "--protocol", "fast", check=False)
     assert bad.returncode == 2 and "paper or strict" in bad.stderr
+
+
+def _without_wall_time(path: Path) -> bytes:
+    import re
+
+    return re.sub(rb'"wall_seconds":[-0-9.eE+]+', b"", path.read_bytes())
+
+
+def test_sharded_eval_merges_to_the_unsharded_run_byte_for_byte(tmp_path):
+    # A learned policy in the mix: its candidates' floats must survive the JSON round trip exactly.
+    common = ["eval", "--task", "goal", "--categories", "Door,Laptop,Box", "--episodes-per-category", "3"]
+    common += ["--policies", "random,umpnet", "--renderer", "cpu", "--threads", "2"]
+    run(*common, "--out", str(tmp_path / "whole"))
+    shards = []
+    for k in (3, 1, 2):  # any order
+        d = tmp_path / f"shard{k}"
+        out = run(*common, "--shard", f"{k}/3", "--out", str(d)).stdout
+        assert f"shard {k}/3" in out
+        assert sorted(p.name for p in d.iterdir()) == ["results.json"]  # no partial tables
+        summary = json.loads((d / "results.json").read_text())["summary"]
+        assert summary["shard"] == f"{k}/3" and summary["models"]["umpnet"].startswith("sha256:")
+        shards.append(str(d))
+    run("eval", "merge", *shards, "--out", str(tmp_path / "merged"))
+    whole, merged = tmp_path / "whole", tmp_path / "merged"
+    assert _without_wall_time(merged / "results.json") == _without_wall_time(whole / "results.json")
+    for name in ("results.csv", "table.txt", "curve.png"):
+        assert (merged / name).read_bytes() == (whole / name).read_bytes(), name
+    n = len(json.loads((whole / "results.json").read_text())["episodes"])
+    assert n == 3 * 3 * 3  # categories x scenes x (random, umpnet, oracle)
+
+    # Incomplete, repeated or foreign shards are refused with the reason.
+    p = run("eval", "merge", shards[0], shards[1], check=False)  # shards 3 and 1
+    assert p.returncode == 2 and "missing shards: 2/3" in p.stderr
+    p = run("eval", "merge", shards[0], shards[0], shards[1], check=False)
+    assert p.returncode == 2 and "given twice" in p.stderr
+    p = run("eval", "merge", str(whole), check=False)
+    assert p.returncode == 2 and "not a shard" in p.stderr
+    other = tmp_path / "other"
+    run(*common[:-4], "--policies", "random", "--renderer", "cpu", "--shard", "1/3", "--out", str(other))
+    p = run("eval", "merge", str(other), shards[1], shards[2], check=False)
+    assert p.returncode == 2 and "not a shard of the same evaluation" in p.stderr and "policies" in p.stderr

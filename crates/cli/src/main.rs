@@ -42,7 +42,7 @@ enum Command {
     /// One goal-conditioned episode.
     Goal(episode_cmd::EpisodeArgs),
     /// The benchmark: policies x categories, tables, CSV, JSON and plots.
-    Eval(eval_cmd::EvalArgs),
+    Eval(eval_cmd::EvalCmd),
     /// Simulator and renderer speed figures.
     Bench(bench_cmd::BenchArgs),
     /// The next action for real RGB-D frames (JSON).

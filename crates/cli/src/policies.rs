@@ -26,6 +26,8 @@ pub struct Resolved {
     pub factories: Vec<(String, PolicyFactory)>,
     /// The learned packages' input resolution, when one is used.
     pub resolution: Option<(u32, u32)>,
+    /// Each learned policy's package directory, by policy name.
+    pub packages: Vec<(String, PathBuf)>,
 }
 
 /// Packages are checked against `task`: an Inverse package has no exploration behaviour.
@@ -37,6 +39,7 @@ pub fn resolve(
 ) -> Result<Resolved> {
     let mut factories: Vec<(String, PolicyFactory)> = Vec::new();
     let mut resolution: Option<(u32, u32)> = None;
+    let mut packages = Vec::new();
     for spec in specs {
         let (name, dir) = match spec.split_once('=') {
             Some((n, d)) => (n.to_string(), Some(PathBuf::from(d))),
@@ -84,6 +87,7 @@ pub fn resolve(
                     )));
                 }
                 resolution = Some(r);
+                packages.push((name.clone(), dir.clone()));
                 let n = name.clone();
                 let f: PolicyFactory = Arc::new(move || {
                     Ok(Box::new(LearnedPolicy::new(&n, pkg.clone()))
@@ -96,5 +100,6 @@ pub fn resolve(
     Ok(Resolved {
         factories,
         resolution,
+        packages,
     })
 }

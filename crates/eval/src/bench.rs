@@ -131,6 +131,77 @@ pub struct BenchConfig {
     pub steps: Option<usize>,
     pub physics: PhysicsProfile,
     pub protocol: Protocol,
+    /// Which share of the scenes to run (all of them by default).
+    pub shard: Shard,
+}
+
+/// Shard `index` of `count` (1-based, as `--shard 2/4`): the scenes whose
+/// position in the canonical order (categories as listed, then scene index)
+/// is `index - 1` modulo `count`. Round-robin, so every shard gets a mix of
+/// categories and about the same work; the union of all shards is the whole
+/// benchmark, each scene exactly once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u32,
+    pub count: u32,
+}
+
+impl Shard {
+    pub const ALL: Shard = Shard { index: 1, count: 1 };
+
+    pub fn new(index: u32, count: u32) -> Result<Shard> {
+        if count == 0 || index == 0 || index > count {
+            return Err(EvalError::Episode(format!(
+                "shard {index}/{count}: expected K/N with 1 <= K <= N"
+            )));
+        }
+        Ok(Shard { index, count })
+    }
+
+    pub fn is_all(self) -> bool {
+        self.count == 1
+    }
+
+    fn holds(self, position: usize) -> bool {
+        position % self.count as usize == (self.index - 1) as usize
+    }
+}
+
+impl Default for Shard {
+    fn default() -> Self {
+        Shard::ALL
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+impl std::str::FromStr for Shard {
+    type Err = EvalError;
+    fn from_str(s: &str) -> Result<Shard> {
+        let bad = || EvalError::Episode(format!("shard `{s}`: expected K/N, e.g. 2/4"));
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let k = k.trim().parse().map_err(|_| bad())?;
+        let n = n.trim().parse().map_err(|_| bad())?;
+        Shard::new(k, n)
+    }
+}
+
+impl BenchConfig {
+    /// The scenes this configuration runs, as (category, index), in the
+    /// canonical order that results are reported in.
+    pub fn scenes(&self) -> Vec<(Category, u32)> {
+        self.categories
+            .iter()
+            .flat_map(|&c| (0..self.episodes_per_category).map(move |k| (c, k)))
+            .enumerate()
+            .filter(|(position, _)| self.shard.holds(*position))
+            .map(|(_, scene)| scene)
+            .collect()
+    }
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -149,11 +220,7 @@ pub fn run_benchmark(
     policies: &[(String, PolicyFactory)],
     progress: &(dyn Fn() + Sync),
 ) -> Vec<EpisodeOutcome> {
-    let jobs: Vec<(Category, u32)> = cfg
-        .categories
-        .iter()
-        .flat_map(|&c| (0..cfg.episodes_per_category).map(move |k| (c, k)))
-        .collect();
+    let jobs = cfg.scenes();
     let results: Vec<Vec<EpisodeOutcome>> = jobs
         .par_iter()
         .map(|&(category, k)| {

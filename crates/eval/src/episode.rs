@@ -45,7 +45,7 @@ pub struct EpisodeConfig {
     pub protocol: Protocol,
 }
 
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Metrics {
     /// Exploration: unique states after each step (length = budget), as the
     /// protocol counts them.

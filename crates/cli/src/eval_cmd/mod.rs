@@ -1,0 +1,251 @@
+//! `umpnet eval`: the paper's benchmark over categories, scenes and
+//! policies, whole or in shards, and `umpnet eval merge` to join shards.
+mod merge;
+mod plot;
+mod report;
+
+use crate::{Ctx, usage};
+use anyhow::{Context, Result};
+use report::{Report, RunInfo};
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use umpnet_eval::Protocol;
+use umpnet_eval::bench::{BenchConfig, PolicyFactory, Shard, run_benchmark};
+use umpnet_sim::camera::Camera;
+use umpnet_sim::objects::Category;
+use umpnet_sim::physics::PhysicsProfile;
+use umpnet_sim::render::{RendererKind, create_renderer};
+use umpnet_sim::scene::Task;
+
+#[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct EvalCmd {
+    #[command(subcommand)]
+    pub action: Option<EvalAction>,
+    #[command(flatten)]
+    pub run: EvalArgs,
+}
+
+#[derive(clap::Subcommand)]
+pub enum EvalAction {
+    /// Join the results.json of `eval --shard K/N` runs into the report of one
+    /// whole run (the same tables, CSV, JSON and plot, byte for byte).
+    Merge(merge::MergeArgs),
+}
+
+#[derive(clap::Args)]
+pub struct EvalArgs {
+    #[arg(long, default_value = "exploration")]
+    pub task: Task,
+    /// Comma-separated categories (overrides --split).
+    #[arg(long, value_delimiter = ',', value_parser = crate::parse_category)]
+    pub categories: Vec<Category>,
+    /// train (held-out instances of training categories), test (test categories) or all.
+    #[arg(long, default_value = "all")]
+    pub split: String,
+    #[arg(long, default_value_t = 100)]
+    pub episodes_per_category: u32,
+    /// Comma-separated policies: random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
+    #[arg(long, value_delimiter = ',', default_value = "oracle,random")]
+    pub policies: Vec<String>,
+    /// Model package for `umpnet` (default: models/umpnet-small).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[arg(long, default_value = "120x160", value_parser = crate::parse_resolution)]
+    pub resolution: (u32, u32),
+    #[arg(long, default_value = "auto")]
+    pub renderer: RendererKind,
+    /// Physics profile: reference (the paper's simulator) or ideal.
+    #[arg(long, default_value = "reference", value_parser = crate::parse_physics)]
+    pub physics: PhysicsProfile,
+    /// Evaluation protocol: paper (the paper's evaluation code) or strict.
+    #[arg(long, default_value = "paper", value_parser = crate::parse_protocol)]
+    pub protocol: Protocol,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Run only shard K of N (1-based, e.g. 2/4): every N-th scene, starting
+    /// at the K-th. `umpnet eval merge` joins the shards' --out directories.
+    #[arg(long, value_parser = parse_shard)]
+    pub shard: Option<Shard>,
+    /// Write results.csv, results.json, table.txt and curve.png here (a shard: results.json).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
+    s.parse::<Shard>().map_err(|e| e.to_string())
+}
+
+/// SHA-256 over a package's files (names, sizes and bytes, in name order):
+/// shards that loaded different packages under one name must not merge.
+fn package_digest(dir: &Path) -> Result<String> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| format!("reading {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .collect();
+    files.sort();
+    let mut h = Sha256::new();
+    for f in &files {
+        let bytes = std::fs::read(f).with_context(|| format!("reading {}", f.display()))?;
+        let name = f.file_name().map(|n| n.to_string_lossy().into_owned());
+        h.update(name.unwrap_or_default().as_bytes());
+        h.update([0]);
+        h.update((bytes.len() as u64).to_le_bytes());
+        h.update(&bytes);
+    }
+    Ok(format!("sha256:{:x}", h.finalize()))
+}
+
+/// `auto` becomes what this machine runs, so that the report says which
+/// renderer made the images (and shards from different renderers do not merge).
+fn resolve_renderer(kind: RendererKind) -> Result<RendererKind> {
+    if kind != RendererKind::Auto {
+        return Ok(kind);
+    }
+    let probe = create_renderer(kind)?;
+    Ok(if probe.name().starts_with("wgpu") {
+        RendererKind::Wgpu
+    } else {
+        RendererKind::Cpu
+    })
+}
+
+pub fn run(ctx: &Ctx, cmd: &EvalCmd) -> Result<()> {
+    match &cmd.action {
+        Some(EvalAction::Merge(m)) => merge::run(ctx, m),
+        None => run_eval(ctx, &cmd.run),
+    }
+}
+
+fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
+    let categories: Vec<Category> = if !a.categories.is_empty() {
+        a.categories.clone()
+    } else {
+        match a.split.as_str() {
+            "train" => Category::ALL
+                .iter()
+                .copied()
+                .filter(|c| c.is_train())
+                .collect(),
+            "test" => Category::ALL
+                .iter()
+                .copied()
+                .filter(|c| !c.is_train())
+                .collect(),
+            "all" => Category::ALL.to_vec(),
+            s => return Err(usage(format!("--split {s}: expected train, test or all"))),
+        }
+    };
+    if a.episodes_per_category == 0 {
+        return Err(usage("--episodes-per-category must be at least 1"));
+    }
+    let threads = a.threads.unwrap_or_else(rayon::current_num_threads).max(1);
+    // The oracle is the ceiling of every table, under the same protocol and physics.
+    let mut listed = a.policies.clone();
+    if !listed.iter().any(|p| p == "oracle") {
+        listed.push("oracle".into());
+    }
+    let resolved = crate::policies::resolve(&listed, a.model.as_deref(), threads, a.task)?;
+    let mut models = BTreeMap::new();
+    for (name, dir) in &resolved.packages {
+        models.insert(name.clone(), package_digest(dir)?);
+    }
+    let policies: Vec<(String, PolicyFactory)> = resolved.factories;
+    let names: Vec<String> = policies.iter().map(|(n, _)| n.clone()).collect();
+    let resolution = resolved.resolution.unwrap_or(a.resolution);
+    let renderer = resolve_renderer(a.renderer)?;
+    let shard = a.shard.unwrap_or_default();
+    let cfg = BenchConfig {
+        task: a.task,
+        categories: categories.clone(),
+        episodes_per_category: a.episodes_per_category,
+        seed: a.seed,
+        dataset_seed: 0,
+        camera: Camera::reference(resolution.0, resolution.1),
+        renderer,
+        steps: None,
+        physics: a.physics,
+        protocol: a.protocol,
+        shard,
+    };
+    let scenes = cfg.scenes().len();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()?;
+    let pb = ctx.progress(scenes as u64, "scenes");
+    let t0 = std::time::Instant::now();
+    let outcomes = pool.install(|| run_benchmark(&cfg, &policies, &|| pb.inc(1)));
+    pb.finish_and_clear();
+    let wall = t0.elapsed().as_secs_f64();
+    for f in outcomes.iter().filter(|o| o.error.is_some()).take(5) {
+        eprintln!(
+            "episode failed: {} #{} {}: {}",
+            f.category,
+            f.index,
+            f.policy,
+            f.error.as_deref().unwrap_or("")
+        );
+    }
+    let report = Report {
+        run: RunInfo {
+            task: a.task,
+            seed: a.seed,
+            episodes_per_category: a.episodes_per_category,
+            physics: a.physics,
+            protocol: a.protocol,
+            resolution: [resolution.0, resolution.1],
+            renderer: match renderer {
+                RendererKind::Wgpu => "wgpu",
+                _ => "cpu",
+            }
+            .into(),
+            policies: names,
+            models,
+            categories,
+        },
+        shard,
+        wall_seconds: wall,
+        episodes: outcomes
+            .iter()
+            .map(serde_json::to_value)
+            .collect::<std::result::Result<_, _>>()?,
+    };
+    finish(ctx, &report, a.out.as_deref(), scenes)
+}
+
+/// Prints the report (a table, or the summary with --json) and writes its files.
+fn finish(ctx: &Ctx, report: &Report, out: Option<&Path>, scenes: usize) -> Result<()> {
+    let scored = report.scored()?;
+    let written = match out {
+        Some(dir) => report.write(&scored, dir)?,
+        None => Vec::new(),
+    };
+    if ctx.json {
+        println!("{}", report.summary(&scored)?);
+        return Ok(());
+    }
+    if !report.shard.is_all() {
+        println!(
+            "shard {}: its share of the scenes only; `umpnet eval merge` joins the shards",
+            report.shard
+        );
+    }
+    print!("{}", report.table(&scored));
+    println!(
+        "{} episodes ({} scenes x {} policies) in {:.1} s; {} failed",
+        scored.len(),
+        scenes,
+        report.run.policies.len(),
+        report.wall_seconds,
+        scored.iter().filter(|o| o.error.is_some()).count()
+    );
+    if let Some(dir) = out {
+        println!("wrote {} to {}", written.join(", "), dir.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,116 @@
+//! curve.png: the mean curve of each policy over its episodes.
+use super::report::Scored;
+use anyhow::Result;
+use std::path::Path;
+use umpnet_sim::scene::Task;
+
+fn register_font() -> Result<()> {
+    use std::sync::OnceLock;
+    static FONT: OnceLock<std::result::Result<(), String>> = OnceLock::new();
+    FONT.get_or_init(|| {
+        let paths = [
+            "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+            "/usr/share/fonts/TTF/DejaVuSans.ttf",
+            "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+        ];
+        let bytes = paths
+            .iter()
+            .find_map(|p| std::fs::read(p).ok())
+            .ok_or("no DejaVuSans.ttf found (apt-get install fonts-dejavu-core)")?;
+        let leaked: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+        plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, leaked)
+            .map_err(|_| "invalid font file".to_string())
+    })
+    .clone()
+    .map_err(|e| anyhow::anyhow!(e))
+}
+
+/// Mean curve per policy: unique states (exploration) or normalized distance (goal) vs step.
+pub fn plot_curves(
+    task: Task,
+    policies: &[String],
+    outcomes: &[Scored],
+    path: &Path,
+) -> Result<()> {
+    use plotters::prelude::*;
+    register_font()?;
+    let mut curves: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut max_len = 0;
+    for p in policies {
+        let series: Vec<&Vec<f32>> = outcomes
+            .iter()
+            .filter(|o| &o.policy == p)
+            .filter_map(|o| o.episode.as_ref())
+            .map(|e| {
+                if task == Task::Goal {
+                    &e.metrics.normalized_distance_curve
+                } else {
+                    &e.metrics.unique_states
+                }
+            })
+            .collect();
+        let len = series.iter().map(|s| s.len()).max().unwrap_or(0);
+        max_len = max_len.max(len);
+        let mean: Vec<f64> = (0..len)
+            .map(|t| {
+                let v: Vec<f64> = series
+                    .iter()
+                    .map(|s| *s.get(t).or(s.last()).unwrap_or(&0.0) as f64)
+                    .collect();
+                v.iter().sum::<f64>() / v.len().max(1) as f64
+            })
+            .collect();
+        curves.push((p.clone(), mean));
+    }
+    let ymax = curves
+        .iter()
+        .flat_map(|(_, c)| c.iter().copied())
+        .fold(1.0, f64::max)
+        * 1.05;
+    let root = BitMapBackend::new(path, (720, 480)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (title, ylabel) = match task {
+        Task::Exploration => ("Exploration: unique states discovered", "unique states"),
+        Task::Goal => (
+            "Goal: normalized distance to the goal",
+            "normalized distance",
+        ),
+    };
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(56)
+        .build_cartesian_2d(1f64..max_len.max(2) as f64, 0f64..ymax)?;
+    chart
+        .configure_mesh()
+        .x_desc("step")
+        .y_desc(ylabel)
+        .draw()?;
+    let palette = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+        RGBColor(255, 127, 14),
+    ];
+    for (k, (name, c)) in curves.iter().enumerate() {
+        let color = palette[k % palette.len()];
+        chart
+            .draw_series(LineSeries::new(
+                c.iter().enumerate().map(|(t, v)| ((t + 1) as f64, *v)),
+                color.stroke_width(3),
+            ))?
+            .label(name.clone())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(3))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
