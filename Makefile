@@ -56,6 +56,8 @@ test-rust: fixture
 test-python: build py fixture
 	# One process per suite: native libraries loaded by one suite cannot affect another.
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py
+	# Ray on a local cluster: sharded evaluation, retries.
+	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_ray.py
 	# The differential suite: the `reference` physics against PyBullet.
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/reference
 	$(PY) -m pytest -q crates/py/tests
