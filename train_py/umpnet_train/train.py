@@ -335,7 +335,17 @@ def parse_args(argv=None):
         const=True,
         help="write the replay buffer beside each checkpoint, so --resume continues on the same data",
     )
+    p.add_argument(
+        "--ray",
+        type=int,
+        default=0,
+        metavar="N",
+        help="collect on N Ray actors (each with its share of the environments); 0: in this process",
+    )
+    p.add_argument("--ray-address", help="an existing Ray cluster (as for ray.init); default: a local one")
     a = p.parse_args(argv)
+    if a.ray < 0:
+        p.error(f"--ray {a.ray}: expected 0 (local collection) or a number of actors")
     cfg = make_config(
         a.preset,
         variant=a.variant,
@@ -431,15 +441,26 @@ def main(argv=None) -> int:
         torch.set_rng_state(ck["torch_rng"])
         start, wall_before = ck["epoch"], ck["provenance"]["wall_seconds"]
     categories = cfg.categories or TRAIN_CATEGORIES
-    env = umpnet.VecEnv(
-        cfg.num_envs,
-        category=categories,
-        split="train",
-        seed=cfg.seed * 1000 + start,
-        resolution=(cfg.height, cfg.width),
-        renderer=cfg.renderer,
-        physics=cfg.physics,
-    )
+    env, collection = None, None
+    if args.ray:
+        from .distributed import RayCollection, split_envs
+
+        try:
+            split_envs(cfg.num_envs, args.ray)
+        except ValueError as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
+        collection = RayCollection(cfg, args.ray, start, categories, args.ray_address)
+    else:
+        env = umpnet.VecEnv(
+            cfg.num_envs,
+            category=categories,
+            split="train",
+            seed=cfg.seed * 1000 + start,
+            resolution=(cfg.height, cfg.width),
+            renderer=cfg.renderer,
+            physics=cfg.physics,
+        )
     replay = Replay(cfg.replay_size, (cfg.height, cfg.width, 10))
     # Dense states keep one image for K labels: a quarter of the buffer's states.
     dense = (
@@ -462,7 +483,7 @@ def main(argv=None) -> int:
     umpnet_bin = str(Path(__file__).resolve().parents[2] / "target" / "release" / "umpnet")
     command = "python -m umpnet_train.train " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     stats = {
-        "sim_s": 0.0, "probe_s": 0.0, "learn_s": 0.0, "positions": 0, "position_success": 0, "steps": 0,
+        "sim_s": 0.0, "probe_s": 0.0, "learn_s": 0.0, "collect_wall_s": 0.0, "positions": 0, "position_success": 0, "steps": 0,
         "dense_labels": 0, "aot_counts": [0, 0, 0],
     }  # fmt: skip
     t_start = time.perf_counter()
@@ -478,6 +499,7 @@ def main(argv=None) -> int:
             "wall_seconds": wall,
             "simulation_share": stats["sim_s"] / max(stats["sim_s"] + stats["learn_s"], 1e-9),
             "trained_on": {"categories": categories, "split": "train instances", "physics": cfg.physics},
+            "collection": f"ray, {args.ray} actors" if args.ray else "local",
             "torch": torch.__version__,
         }
 
@@ -485,7 +507,12 @@ def main(argv=None) -> int:
         range(start, cfg.epochs), initial=start, total=cfg.epochs, desc="epochs", disable=not sys.stderr.isatty()
     )
     for epoch in bar:
-        collect(env, model, cfg, replay, dense, epoch, rng, stats)
+        t0 = time.perf_counter()
+        if collection is not None:
+            collection.collect(model, epoch, replay, dense, stats)
+        else:
+            collect(env, model, cfg, replay, dense, epoch, rng, stats)
+        stats["collect_wall_s"] += time.perf_counter() - t0
         model.train()
         t0 = time.perf_counter()
         for _ in range(cfg.iterations_per_epoch):
@@ -534,11 +561,16 @@ def main(argv=None) -> int:
                 flush=True,
             )
     writer.close()
+    if collection is not None:
+        collection.close()
     prov = provenance(cfg.epochs)
     print(
         f"trained {cfg.epochs} epochs in {prov['wall_seconds']:.0f} s; simulation {prov['simulation_share']:.0%} of the time"
     )
     print(f"AoT labels collected (-1, 0, +1): {stats['aot_counts']}")
+    rate = stats["steps"] / max(stats["collect_wall_s"], 1e-9)
+    where = f"{args.ray} Ray actors" if args.ray else "this process"
+    print(f"collection ({where}): {stats['steps']} direction samples in {stats['collect_wall_s']:.1f} s ({rate:.1f}/s)")
     if stats["dense_labels"]:
         rate = stats["dense_labels"] / max(stats["probe_s"], 1e-9)
         print(f"dense labels: {stats['dense_labels']} in {stats['probe_s']:.0f} s ({rate:.0f} labels/s)")

@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 results[k] = ray.get(ready[0])
                 status = "done"
-            except Exception as e:  # a task's exception, after its retries
+            except ray.exceptions.RayError as e:  # a task that failed all its tries, or a lost worker
                 cause = getattr(e, "cause", None) or e
                 failed.append(f"shard {k}/{n} failed after {args.retries + 1} attempts: {cause}")
                 status = "FAILED"
