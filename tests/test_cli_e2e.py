@@ -11,6 +11,18 @@ ROOT = Path(__file__).resolve().parents[1]
 UMPNET = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
 
 
+def fixture_package() -> str:
+    """The contract-test package (`make fixture`). Without it the test is
+    skipped with the reason, except in CI (CI=true), where that is a failure."""
+    path = os.environ.get("UMPNET_FIXTURE")
+    if not path:
+        why = "UMPNET_FIXTURE not set (make test sets it)"
+        if os.environ.get("CI") == "true":
+            pytest.fail(why)
+        pytest.skip(why)
+    return path
+
+
 def run(*args, check=True):
     p = subprocess.run([UMPNET, *args], check=False, capture_output=True, text=True, timeout=600)
     if check and p.returncode != 0:
@@ -107,9 +119,8 @@ def test_broken_object_file_exits_1_naming_the_file(tmp_path):
     assert p.stderr.count("\n") == 1
 
 
-@pytest.mark.skipif(not os.environ.get("UMPNET_FIXTURE"), reason="UMPNET_FIXTURE not set (make test sets it)")
 def test_learned_policy_episode_and_infer(tmp_path):
-    fixture = os.environ["UMPNET_FIXTURE"]
+    fixture = fixture_package()
     out = json.loads(run("--json", "explore", "--category", "Door", "--policy", "umpnet", "--model", fixture).stdout)
     assert out["policy"] == "umpnet"
     run("render", "--category", "Microwave", "--seed", "3", "--resolution", "96x128", "--out", str(tmp_path))
@@ -123,7 +134,8 @@ def test_learned_policy_episode_and_infer(tmp_path):
         ).stdout
     )  # fmt: skip
     assert len(res["pixel"]) == 2 and res["mode"] == "explore"
-    assert res["direction"] is None or abs(sum(v * v for v in res["direction"]) - 1) < 1e-4
+    # Exploration never stops: there is always a unit direction.
+    assert res["direction"] is not None and abs(sum(v * v for v in res["direction"]) - 1) < 1e-4
     bad = run("infer", "--rgb", str(tmp_path / "color.png"), "--depth", str(tmp_path / "depth.npy"),
               "--intrinsics", "1,2", "--camera-pose", pose, "--model", fixture, check=False)  # fmt: skip
     assert bad.returncode == 2 and "--intrinsics" in bad.stderr

@@ -195,27 +195,37 @@ fn paper_episode_over(scene: &Scene, env: &SimEnv, joint: usize, step: &Step) ->
     }
 }
 
-fn metrics(
-    scene: &Scene,
-    joint: Option<usize>,
-    env: &SimEnv,
-    steps: &[Step],
+/// What the metrics need to know of an episode besides its steps.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scoring {
+    /// Nothing was grasped (or the goal task has no goal): the task's worst score.
+    Missed(Task),
+    /// Exploration of the grasped joint from `start`; the paper's walk divides
+    /// prismatic moves by the object's `scale` (1 for revolute joints).
+    Exploration { start: f32, scale: f32 },
+    /// The goal joint from `init` toward `target`; `now` is its value after the
+    /// episode (the goal joint need not be the grasped one).
+    Goal { init: f32, target: f32, now: f32 },
+}
+
+/// An episode's metrics from its steps' (joint value after, |Δ joint|) under
+/// `protocol`: pure, so that every metric can be checked on hand-made steps.
+pub fn score(
+    what: Scoring,
+    steps: &[(f32, f32)],
     budget: usize,
     protocol: Protocol,
     ended_by_protocol: bool,
 ) -> Metrics {
     let mut m = Metrics::default();
-    let after: Vec<f32> = steps.iter().map(|s| s.record.labels.joint_after).collect();
-    match scene.task {
-        Task::Exploration => {
-            let Some(j) = joint else {
-                m.unique_states = vec![0.0; budget];
-                return m;
-            };
-            let start = steps
-                .first()
-                .map(|s| s.record.labels.joint_before)
-                .unwrap_or_else(|| env.articulation().joint_position(j));
+    let after: Vec<f32> = steps.iter().map(|s| s.0).collect();
+    match what {
+        Scoring::Missed(Task::Exploration) => m.unique_states = vec![0.0; budget],
+        Scoring::Missed(Task::Goal) => {
+            m.normalized_distance = 1.0;
+            m.normalized_distance_curve = vec![1.0; budget];
+        }
+        Scoring::Exploration { start, scale } => {
             // Steps the protocol scores: the paper stops at a limit; a policy
             // that stopped leaves the state as it was for the rest.
             let scored = if ended_by_protocol {
@@ -224,18 +234,10 @@ fn metrics(
                 budget
             };
             let value_at = |t: usize| after.get(t).or(after.last()).copied().unwrap_or(start);
-            m.single_action_effect = steps
-                .iter()
-                .map(|s| s.record.labels.r_dist / DELTA)
-                .sum::<f32>()
-                / scored.max(1) as f32;
+            m.single_action_effect =
+                steps.iter().map(|s| s.1 / DELTA).sum::<f32>() / scored.max(1) as f32;
             match protocol {
                 Protocol::Paper => {
-                    let scale = if env.model().joints[j].kind.is_prismatic() {
-                        scene.pose.scale
-                    } else {
-                        1.0
-                    };
                     let values: Vec<f32> = (0..scored).map(value_at).collect();
                     let visited = protocol::paper_walk(start, &values, scale);
                     m.unique_states = (0..budget)
@@ -257,34 +259,56 @@ fn metrics(
                 }
             }
         }
-        Task::Goal => {
-            let Some(g) = scene.goal.as_ref() else {
-                m.normalized_distance = 1.0;
-                m.normalized_distance_curve = vec![1.0; budget];
-                return m;
-            };
-            let (init, target) = (scene.joints[g.joint], g.joints[g.joint]);
+        Scoring::Goal { init, target, now } => {
             let dist = |v: f32| -> f32 { (v - target).abs() / (target - init).abs().max(1e-6) };
-            let reached = ended_by_protocol && joint.is_some();
             let mut last = 1.0;
             for t in 0..budget {
-                if joint.is_some()
-                    && let Some(v) = after.get(t)
-                {
+                if let Some(v) = after.get(t) {
                     last = dist(*v);
                 }
-                if reached && t + 1 >= after.len() {
+                if ended_by_protocol && t + 1 >= after.len() {
                     last = 0.0;
                 }
                 m.normalized_distance_curve.push(last);
             }
-            m.normalized_distance = match joint {
-                None => 1.0,
-                Some(_) if reached => 0.0,
-                Some(_) => dist(env.articulation().joint_position(g.joint)),
-            };
+            m.normalized_distance = if ended_by_protocol { 0.0 } else { dist(now) };
             m.success = m.normalized_distance < 0.1;
         }
     }
     m
+}
+
+fn metrics(
+    scene: &Scene,
+    joint: Option<usize>,
+    env: &SimEnv,
+    steps: &[Step],
+    budget: usize,
+    protocol: Protocol,
+    ended_by_protocol: bool,
+) -> Metrics {
+    let what = match (scene.task, joint, scene.goal.as_ref()) {
+        (Task::Exploration, Some(j), _) => Scoring::Exploration {
+            start: steps
+                .first()
+                .map(|s| s.record.labels.joint_before)
+                .unwrap_or_else(|| env.articulation().joint_position(j)),
+            scale: if env.model().joints[j].kind.is_prismatic() {
+                scene.pose.scale
+            } else {
+                1.0
+            },
+        },
+        (Task::Goal, Some(_), Some(g)) => Scoring::Goal {
+            init: scene.joints[g.joint],
+            target: g.joints[g.joint],
+            now: env.articulation().joint_position(g.joint),
+        },
+        _ => Scoring::Missed(scene.task),
+    };
+    let records: Vec<(f32, f32)> = steps
+        .iter()
+        .map(|s| (s.record.labels.joint_after, s.record.labels.r_dist))
+        .collect();
+    score(what, &records, budget, protocol, ended_by_protocol)
 }

@@ -46,3 +46,62 @@ fn estimated_normals_agree_with_exact_ones() {
     assert!(median < 2.0, "median angle {median} deg");
     assert!(p90 < 30.0, "90th percentile {p90} deg");
 }
+
+/// Every channel of the network input against the renderer's ground truth on a
+/// coloured scene: xyz are the frame's world points, then r, g, b in that
+/// order, then depth. A swapped channel (RGB read as BGR, y for z) fails here.
+#[test]
+fn observation_channels_are_the_frames_world_points_colours_and_depth() {
+    let mut checked = 0;
+    let mut coloured = 0;
+    for c in [Category::Microwave, Category::Door, Category::Toy] {
+        let scene = benchmark_scene(1, Task::Exploration, c, 0, 0, Default::default()).unwrap();
+        let mut env = SimEnv::new(
+            scene,
+            Camera::reference(60, 80),
+            Box::new(CpuRenderer::default()),
+        )
+        .unwrap();
+        let f = env.render().unwrap();
+        let obs = observation_tensor(&f).unwrap();
+        for r in 0..f.height {
+            for col in 0..f.width {
+                let i = f.index(r, col);
+                let (ru, cu) = (r as usize, col as usize);
+                let rgb = &f.rgb[i * 3..i * 3 + 3];
+                for k in 0..3 {
+                    let want = rgb[k] as f32 / 255.0;
+                    let got = obs[[ru, cu, 3 + k]];
+                    assert!(
+                        (got - want).abs() < 1e-6,
+                        "{c} ({r},{col}) colour {k}: {got} vs {want}"
+                    );
+                }
+                let Some(p) = f.point_in_world(r, col) else {
+                    assert_eq!(
+                        obs[[ru, cu, 9]],
+                        0.0,
+                        "{c} ({r},{col}) depth without a point"
+                    );
+                    continue;
+                };
+                assert_eq!(obs[[ru, cu, 9]], f.depth[i], "{c} ({r},{col}) depth");
+                for (k, want) in [p.x, p.y, p.z].into_iter().enumerate() {
+                    let got = obs[[ru, cu, k]];
+                    assert!(
+                        (got - want).abs() < 1e-4,
+                        "{c} ({r},{col}) xyz[{k}]: {got} vs {want}"
+                    );
+                }
+                checked += 1;
+                coloured += usize::from((rgb[0] as i32 - rgb[2] as i32).abs() > 20);
+            }
+        }
+    }
+    // The scene must be able to tell R from B, or an R/B swap would pass unseen.
+    assert!(checked > 1000, "{checked} pixels with depth");
+    assert!(
+        coloured > 200,
+        "{coloured} of {checked} pixels with |R - B| > 20"
+    );
+}

@@ -253,4 +253,29 @@ mod tests {
             "goal mode picks a negative-AoT direction"
         );
     }
+
+    #[test]
+    fn selection_follows_the_wanted_arrow_of_time_before_distance() {
+        let dirs = [
+            Vector3::new(1.0, 0.0, 0.0),
+            Vector3::new(-1.0, 0.0, 0.0),
+            Vector3::new(0.0, 1.0, 0.0),
+            Vector3::new(0.0, 0.0, 1.0),
+        ];
+        let score = |distance, aot| Score { distance, aot };
+        // The largest distance is backward (-x), a smaller one forward (+x).
+        let scores = [score(0.2, 1), score(0.9, -1), score(0.5, 0), score(0.1, 1)];
+        assert_eq!(select(&dirs, &scores, Mode::Explore), Some(dirs[0]));
+        assert_eq!(select(&dirs, &scores, Mode::Goal), Some(dirs[1]));
+        // Nothing forward: exploration still moves (largest distance); the goal mode
+        // with nothing backward stops.
+        let none_forward = [score(0.2, 0), score(0.9, -1), score(0.5, 0), score(0.1, 0)];
+        assert_eq!(select(&dirs, &none_forward, Mode::Explore), Some(dirs[1]));
+        let none_back = [score(0.2, 1), score(0.9, 0), score(0.5, 1), score(0.1, 0)];
+        assert_eq!(select(&dirs, &none_back, Mode::Goal), None);
+        // The objective CEM resamples around counts only the wanted class.
+        assert_eq!(objective(&scores[1], Mode::Explore), 0.0);
+        assert_eq!(objective(&scores[0], Mode::Explore), 0.2);
+        assert_eq!(objective(&scores[1], Mode::Goal), 0.9);
+    }
 }

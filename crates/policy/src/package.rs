@@ -40,10 +40,19 @@ pub struct ModelMeta {
     /// normal at the grasp (the Where2Act pulling heuristic).
     #[serde(default = "default_filter")]
     pub direction_filter: String,
+    /// The AoT class of each column of `aot_probs`: a permutation of -1, 0, +1
+    /// (the exporter writes [-1, 0, 1]). The runtime reorders the columns to
+    /// that canonical order, so packages of any class order mean the same.
+    #[serde(default = "default_aot_classes")]
+    pub aot_classes: Vec<i64>,
     #[serde(default)]
     pub provenance: serde_json::Value,
     #[serde(default)]
     pub evaluation: serde_json::Value,
+}
+
+fn default_aot_classes() -> Vec<i64> {
+    vec![-1, 0, 1]
 }
 
 fn default_variant() -> String {
@@ -217,6 +226,17 @@ impl ModelPackage {
                 ),
             ));
         };
+        let mut classes = meta.aot_classes.clone();
+        classes.sort_unstable();
+        if classes != [-1, 0, 1] {
+            return Err(pkg_err(
+                &meta_path,
+                format!(
+                    "`aot_classes` is {:?}, expected an order of -1, 0 and 1 (e.g. [-1, 0, 1])",
+                    meta.aot_classes
+                ),
+            ));
+        }
         if !["none", "normal90"].contains(&meta.direction_filter.as_str()) {
             return Err(pkg_err(
                 &meta_path,
@@ -436,10 +456,18 @@ impl ModelPackage {
             let get2 = |k: &str| -> Result<Array2<f32>> {
                 out[k].try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
             };
+            // Columns in the package's class order -> canonical (-1, 0, +1).
+            let canonical = |p: Array2<f32>| -> Array2<f32> {
+                let mut out = p.clone();
+                for (k, c) in self.meta.aot_classes.iter().enumerate() {
+                    out.column_mut((c + 1) as usize).assign(&p.column(k));
+                }
+                out
+            };
             Ok(match self.branches {
-                Branches::DistAot => DirectionScores { distance: get1("distance")?, aot_probs: get2("aot_probs")? },
+                Branches::DistAot => DirectionScores { distance: get1("distance")?, aot_probs: canonical(get2("aot_probs")?) },
                 Branches::AotOnly => {
-                    let p = get2("aot_probs")?;
+                    let p = canonical(get2("aot_probs")?);
                     // No distance branch: rank by the probability of an effective move.
                     let d = p.index_axis(Axis(1), 0).to_owned() + p.index_axis(Axis(1), 2);
                     DirectionScores { distance: d, aot_probs: p }

@@ -29,11 +29,23 @@ fn runtime_err(e: impl std::fmt::Display) -> PyErr {
     PyRuntimeError::new_err(e.to_string())
 }
 
+/// A package or an input that is wrong is the caller's ValueError; a runtime
+/// that fails (ONNX Runtime missing or broken) is a RuntimeError.
+fn policy_err(e: umpnet_policy::PolicyError) -> PyErr {
+    match e {
+        umpnet_policy::PolicyError::Input(_) | umpnet_policy::PolicyError::Package { .. } => {
+            PyValueError::new_err(e.to_string())
+        }
+        other => runtime_err(other),
+    }
+}
+
 pub(crate) fn eval_err(e: EvalError) -> PyErr {
     match e {
         EvalError::Sim(umpnet_sim::SimError::InvalidAction(m)) => PyValueError::new_err(m),
         EvalError::Sim(umpnet_sim::SimError::InvalidScene(m)) => PyValueError::new_err(m),
         EvalError::Policy(umpnet_policy::PolicyError::Input(m)) => PyValueError::new_err(m),
+        EvalError::Policy(p) => policy_err(p),
         other => runtime_err(other),
     }
 }
@@ -718,7 +730,7 @@ impl Policy {
                 "threads = {threads}: expected 1 to {MAX_THREADS}"
             )));
         }
-        let pkg = ModelPackage::load(&model_dir, 1, threads, None).map_err(runtime_err)?;
+        let pkg = ModelPackage::load(&model_dir, 1, threads, None).map_err(policy_err)?;
         Ok(Self {
             inner: UmpnetPolicy::new(Arc::new(pkg)),
             rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed),

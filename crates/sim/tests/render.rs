@@ -26,8 +26,9 @@ fn scene(c: Category, k: u32) -> umpnet_sim::scene::Scene {
 fn wgpu_matches_cpu_reference_on_every_category() {
     if !gpu_available() {
         assert!(
-            std::env::var_os("UMPNET_REQUIRE_WGPU").is_none(),
-            "UMPNET_REQUIRE_WGPU is set but no wgpu adapter exists"
+            std::env::var_os("UMPNET_REQUIRE_WGPU").is_none()
+                && std::env::var("CI").as_deref() != Ok("true"),
+            "no wgpu adapter, under UMPNET_REQUIRE_WGPU or CI=true (install mesa-vulkan-drivers)"
         );
         eprintln!("skipped: no wgpu adapter");
         return;

@@ -1,0 +1,105 @@
+"""What the runtime's choices mean, on packages whose decoder is set by hand:
+the AoT head calls moves along +x forward (+1) and along -x backward (-1),
+while the distance head rates -x highest. So exploration must move along +x
+(rejecting the top-distance candidates, whose AoT is wrong), the goal mode
+along -x; `aot_classes` in model.json must be read; and training's class
+order (class = AoT + 1) must be the one the runtime reads."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+import umpnet
+from umpnet_train import train
+from umpnet_train.config import make_config
+from umpnet_train.export import export_model
+from umpnet_train.models import UMPNet
+
+CANONICAL = (-1, 0, 1)
+
+
+def crafted(columns=CANONICAL):
+    """A smoke model whose decoder ignores the image: distance 0.3 - 0.2 x, and
+    AoT logits 10 x for class +1, -10 x for -1, 1 for 0 (no move when |x| < 0.1).
+    `columns` is the class each output column holds."""
+    torch.manual_seed(0)
+    cfg = make_config("smoke")
+    model = UMPNet(cfg)
+    dec = model.decoder
+    with torch.no_grad():
+        for p in dec.parameters():
+            p.zero_()
+        dec.dist_head[-1].bias.fill_(0.3)
+        dec.bilinear_dist.bias.copy_(torch.tensor([-0.2, 0.0, 0.0]))
+        bil, base = torch.zeros(3, 3), torch.zeros(3)
+        for col, cls in enumerate(columns):
+            bil[col, 0] = 10.0 * cls
+            base[col] = 1.0 if cls == 0 else 0.0
+        dec.bilinear_aot.bias.copy_(bil.reshape(-1))
+        dec.aot_head[-1].bias.copy_(base)
+    return model, cfg
+
+
+def package(path, columns=CANONICAL, classes=None):
+    model, cfg = crafted(columns)
+    export_model(model, cfg, path, {"command": "test_runtime_semantics", "trained": False})
+    if classes is not None:
+        meta = json.loads((path / "model.json").read_text())
+        meta["aot_classes"] = list(classes)
+        (path / "model.json").write_text(json.dumps(meta))
+    return path
+
+
+def choose(pkg, mode, n=6):
+    policy = umpnet.Policy(str(pkg), seed=3)
+    h, w = policy.resolution
+    rng = np.random.default_rng(0)
+    images = rng.normal(size=(n, h, w, 10)).astype(np.float32)
+    pixels = np.array([[h // 2, w // 2]] * n, dtype=np.int64)
+    return policy.direction_batch(images, images.copy(), pixels, mode=mode)
+
+
+def test_exploration_moves_forward_and_the_goal_mode_back(tmp_path):
+    pkg = package(tmp_path / "pkg")
+    assert json.loads((pkg / "model.json").read_text())["aot_classes"] == [-1, 0, 1]
+    for r in choose(pkg, "explore"):
+        x = r["direction"][0]
+        assert x > 0.1, r["direction"]
+        # The candidates with the largest predicted distance lie along -x and
+        # were predicted backward: rejected, although they rate highest.
+        best = int(np.argmax(r["distance"]))
+        assert r["candidates"][best][0] < -0.5 and r["aot"][best] == -1
+        chosen = r["candidates"].index(r["direction"])
+        assert r["aot"][chosen] == 1 and r["distance"][chosen] < r["distance"][best]
+    for r in choose(pkg, "goal"):
+        assert r["direction"][0] < -0.9, r["direction"]
+        assert r["aot"][r["candidates"].index(r["direction"])] == -1
+
+
+def test_aot_classes_are_read_and_honoured(tmp_path):
+    reference = choose(package(tmp_path / "canonical"), "explore")
+    # The same model with its output columns in another order, declared as such: same choices.
+    declared = package(tmp_path / "declared", columns=(1, 0, -1), classes=(1, 0, -1))
+    assert choose(declared, "explore") == reference
+    # Declared wrongly: the runtime believes the columns and walks the other way.
+    wrong = package(tmp_path / "wrong", columns=(1, 0, -1), classes=CANONICAL)
+    assert all(r["direction"][0] < -0.1 for r in choose(wrong, "explore"))
+    for bad in ([1, 1, 0], [-1, 0], [-1, 0, 2]):
+        with pytest.raises(ValueError, match="aot_classes"):
+            umpnet.Policy(str(package(tmp_path / f"bad{len(bad)}{bad[-1]}", classes=bad)))
+
+
+def test_training_labels_use_the_class_order_the_runtime_reads():
+    model, cfg = crafted()
+    x = torch.tensor([[1.0, 0, 0], [-1.0, 0, 0], [0.0, 1, 0]])
+    e = torch.zeros(3, cfg.embedding)
+    dist, logits = model.decoder(e, e, x)
+    # The moves the runtime reads as forward, backward and none, labelled so.
+    aot = np.array([1, -1, 0])
+    out = {}
+    train.direction_losses(cfg, dist, logits, np.zeros(3, np.float32), aot, torch.full((3,), 1 / 3), "", out)
+    assert float(out["metric/aot_accuracy"]) == 1.0
+    # The opposite labelling disagrees on both moves.
+    train.direction_losses(cfg, dist, logits, np.zeros(3, np.float32), -aot, torch.full((3,), 1 / 3), "", out)
+    assert float(out["metric/aot_accuracy"]) == pytest.approx(1 / 3)
