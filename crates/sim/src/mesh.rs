@@ -5,6 +5,12 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// An indexed triangle mesh in some frame named by its owner.
+
+/// Mesh files larger than this are refused before reading (PartNet-Mobility's
+/// meshes are a few MB).
+pub const MAX_OBJ_BYTES: u64 = 256 << 20;
+/// Triangles in one mesh (PartNet-Mobility's largest have about 100k).
+pub const MAX_TRIANGLES: usize = 4_000_000;
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriMesh {
     pub positions: Vec<Vec3>,
@@ -152,6 +158,18 @@ impl TriMesh {
     /// Reads a Wavefront OBJ file: `v` and `f` records (polygons are fanned;
     /// `v/vt/vn` and negative indices accepted); everything else ignored.
     pub fn read_obj(path: &Path) -> Result<TriMesh> {
+        if let Ok(meta) = std::fs::metadata(path)
+            && meta.len() > MAX_OBJ_BYTES
+        {
+            return Err(SimError::Mesh {
+                file: path.to_path_buf(),
+                line: 0,
+                what: format!(
+                    "{} bytes; mesh files are limited to {MAX_OBJ_BYTES}",
+                    meta.len()
+                ),
+            });
+        }
         let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
             file: path.to_path_buf(),
             source,
@@ -207,6 +225,7 @@ impl TriMesh {
         };
         let mut mesh = TriMesh::default();
         let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
+        let mut triangles = 0usize;
         for (i, line) in text.lines().enumerate() {
             let lineno = i + 1;
             let mut it = line.split_whitespace();
@@ -240,6 +259,13 @@ impl TriMesh {
                         .collect::<Result<Vec<_>>>()?;
                     if idx.len() < 3 {
                         return Err(err(lineno, "face needs at least 3 vertices".into()));
+                    }
+                    triangles += idx.len() - 2;
+                    if triangles > MAX_TRIANGLES {
+                        return Err(err(
+                            lineno,
+                            format!("more than {MAX_TRIANGLES} triangles in one mesh"),
+                        ));
                     }
                     faces.push((lineno, idx));
                 }

@@ -126,8 +126,34 @@ const NUMERIC_ATTRS: &[&str] = &[
     "iyz", "izz", "radius", "length", "size", "scale", "rgba", "damping", "friction",
 ];
 
+/// Limits on what a URDF may hold. PartNet-Mobility's files are far below
+/// each (tens of KB, depth under 8, under 40 links); they bound the time and
+/// memory a hostile file can take, and every one is an error naming the file.
+pub const MAX_URDF_BYTES: u64 = 16 << 20;
+/// Element nesting (a URDF needs about 6: robot, link, visual, geometry, mesh).
+pub const MAX_XML_DEPTH: usize = 64;
+/// Attributes on one element.
+pub const MAX_ATTRIBUTES: usize = 64;
+/// Links (and joints) of one object: the renderer's part slots.
+pub const MAX_LINKS: usize = 64;
+/// Longest number token (a numeric attribute's value is a few of these).
+const MAX_NUMBER_TOKEN: usize = 64;
+/// Longest attribute value quoted back in an error message.
+const MAX_QUOTED: usize = 80;
+
 /// Reads and validates a URDF file.
 pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
+    if let Ok(meta) = std::fs::metadata(path)
+        && meta.len() > MAX_URDF_BYTES
+    {
+        return Err(urdf_err(
+            path,
+            format!(
+                "{} bytes; URDF files are limited to {MAX_URDF_BYTES}",
+                meta.len()
+            ),
+        ));
+    }
     let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
         file: path.to_path_buf(),
         source,
@@ -152,9 +178,28 @@ pub type MeshSource<'a> = &'a dyn Fn(&Path) -> Option<TriMesh>;
 
 /// As [`parse_urdf`], with meshes looked up in `meshes` first.
 pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<ObjectModel> {
+    if text.len() as u64 > MAX_URDF_BYTES {
+        return Err(urdf_err(
+            path,
+            format!(
+                "{} bytes; URDF files are limited to {MAX_URDF_BYTES}",
+                text.len()
+            ),
+        ));
+    }
+    check_xml_shape(text, path)?;
     let doc = roxmltree::Document::parse(text)
         .map_err(|e| urdf_err(path, format!("not well-formed XML: {e}")))?;
     let root = doc.root_element();
+    for kind in ["link", "joint"] {
+        let n = root.children().filter(|c| c.has_tag_name(kind)).count();
+        if n > MAX_LINKS {
+            return Err(urdf_err(
+                path,
+                format!("{n} <{kind}> elements; an object may have at most {MAX_LINKS}"),
+            ));
+        }
+    }
     if root.tag_name().name() != "robot" {
         return Err(urdf_err(
             path,
@@ -181,6 +226,82 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
         .map_err(|e| urdf_err(path, format!("invalid URDF: {e}")))?;
     check_finite(&robot, path)?;
     build_model(robot, path, &with_inertial, &joint_lines, meshes)
+}
+
+/// Nesting depth and attributes per element, checked on the raw text before
+/// any XML reader sees it: deep nesting overflows recursive readers' stacks,
+/// and thousands of attributes on one element make their duplicate checks
+/// quadratic. Malformed markup is left to the XML reader's message.
+fn check_xml_shape(text: &str, path: &Path) -> Result<()> {
+    let b = text.as_bytes();
+    let line = |at: usize| 1 + b[..at].iter().filter(|c| **c == b'\n').count();
+    let after = |from: usize, end: &[u8]| -> usize {
+        b[from..]
+            .windows(end.len())
+            .position(|w| w == end)
+            .map_or(b.len(), |k| from + k + end.len())
+    };
+    let (mut i, mut depth) = (0usize, 0usize);
+    while let Some(off) = b[i..].iter().position(|c| *c == b'<') {
+        let s = i + off;
+        let rest = &b[s..];
+        if rest.starts_with(b"<!--") {
+            i = after(s, b"-->");
+        } else if rest.starts_with(b"<![CDATA[") {
+            i = after(s, b"]]>");
+        } else if rest.starts_with(b"<?") {
+            i = after(s, b"?>");
+        } else if rest.starts_with(b"<!") {
+            i = after(s, b">");
+        } else if rest.starts_with(b"</") {
+            depth = depth.saturating_sub(1);
+            i = after(s, b">");
+        } else {
+            let (mut k, mut quote, mut attributes) = (s + 1, None, 0usize);
+            while k < b.len() {
+                match (quote, b[k]) {
+                    (Some(q), c) if c == q => quote = None,
+                    (Some(_), _) => {}
+                    (None, c @ (b'"' | b'\'')) => quote = Some(c),
+                    (None, b'=') => attributes += 1,
+                    (None, b'>') => break,
+                    _ => {}
+                }
+                k += 1;
+            }
+            if attributes > MAX_ATTRIBUTES {
+                return Err(urdf_err(
+                    path,
+                    format!(
+                        "line {}: an element with {attributes} attributes; at most {MAX_ATTRIBUTES}",
+                        line(s)
+                    ),
+                ));
+            }
+            if b.get(k.wrapping_sub(1)) != Some(&b'/') {
+                depth += 1;
+                if depth > MAX_XML_DEPTH {
+                    return Err(urdf_err(
+                        path,
+                        format!(
+                            "line {}: elements nested more than {MAX_XML_DEPTH} deep",
+                            line(s)
+                        ),
+                    ));
+                }
+            }
+            i = (k + 1).min(b.len());
+        }
+    }
+    Ok(())
+}
+
+/// `value`, cut to a length a message can quote.
+fn quoted(value: &str) -> String {
+    match value.char_indices().nth(MAX_QUOTED) {
+        Some((cut, _)) => format!("{}... ({} bytes)", &value[..cut], value.len()),
+        None => value.to_owned(),
+    }
 }
 
 /// Every origin, inertia and geometry size must be a finite number: a NaN
@@ -245,7 +366,7 @@ fn mend(
                         "<{name}> at line {}: attribute {}=\"{}\" is not a list of numbers",
                         line_of(node),
                         a.name(),
-                        a.value()
+                        quoted(a.value())
                     ),
                 )
             })?
@@ -287,6 +408,9 @@ fn mend_numbers(value: &str) -> Option<String> {
         .split(|c: char| c.is_whitespace() || c == ',')
         .filter(|t| !t.is_empty())
     {
+        if tok.len() > MAX_NUMBER_TOKEN {
+            return None;
+        }
         if tok.parse::<f64>().is_ok() {
             parts.push(tok.to_owned());
             continue;
@@ -770,5 +894,49 @@ mod tests {
         );
         // The same file with finite numbers loads.
         assert!(parse_urdf(&wrap(&format!("{BASE}{joint}")), Path::new("x.urdf")).is_ok());
+    }
+
+    #[test]
+    fn hostile_shapes_are_refused_by_name_before_any_reader_recurses() {
+        // 15,000 nested unknown elements overflowed the stack (exit 134).
+        let deep = format!("{}{}", "<x>".repeat(15_000), "</x>".repeat(15_000));
+        let e = err_of(&format!("{BASE}{deep}"));
+        assert!(
+            e.contains("nested more than 64 deep") && e.contains("mobility.urdf"),
+            "{e}"
+        );
+        // Comments, CDATA and self-closing elements do not count as nesting.
+        let joint = r#"<joint name="j" type="revolute"><axis xyz="0 0 1"/><parent link="base"/>
+            <child link="door"/><limit lower="0" upper="1"/></joint>"#;
+        let flat = format!(
+            "{BASE}<!-- <a><b><c> --><![CDATA[<d><e>]]>{joint}{}",
+            "<y/>".repeat(200)
+        );
+        let ok = parse_urdf(&wrap(&flat), Path::new("ok.urdf"));
+        assert!(ok.is_ok(), "{:?}", ok.err());
+        // Thousands of attributes on one element (quadratic in XML readers).
+        let attrs: String = (0..5000).map(|k| format!(" a{k}=\"1\"")).collect();
+        let e = err_of(&format!("{BASE}<link name=\"z\"{attrs}/>"));
+        assert!(e.contains("5001 attributes; at most 64"), "{e}");
+        // More links than the renderer has part slots, refused before any physics.
+        let links: String = (0..65).map(|k| format!("<link name=\"l{k}\"/>")).collect();
+        let e = err_of(&links);
+        assert!(
+            e.contains("65 <link> elements; an object may have at most 64"),
+            "{e}"
+        );
+        // A huge file, refused on its size.
+        let big = format!("{BASE}<!-- {} -->", "x".repeat(MAX_URDF_BYTES as usize));
+        assert!(err_of(&big).contains("URDF files are limited to"));
+    }
+
+    #[test]
+    fn long_bad_values_are_cut_in_messages() {
+        let long = "9".repeat(30) + &"x".repeat(50_000);
+        let e = err_of(&format!(
+            r#"{BASE}<joint name="j" type="revolute"><parent link="base"/><child link="door"/><origin xyz="{long} 0 0"/></joint>"#
+        ));
+        assert!(e.len() < 400, "{} bytes: {}", e.len(), &e[..200]);
+        assert!(e.contains("50034 bytes") && e.contains("xyz"), "{e}");
     }
 }
