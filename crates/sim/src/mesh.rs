@@ -4,13 +4,13 @@ use crate::math::{Pose3, Vec3};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// An indexed triangle mesh in some frame named by its owner.
-
 /// Mesh files larger than this are refused before reading (PartNet-Mobility's
 /// meshes are a few MB).
 pub const MAX_OBJ_BYTES: u64 = 256 << 20;
 /// Triangles in one mesh (PartNet-Mobility's largest have about 100k).
 pub const MAX_TRIANGLES: usize = 4_000_000;
+
+/// An indexed triangle mesh in some frame named by its owner.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriMesh {
     pub positions: Vec<Vec3>,
