@@ -103,3 +103,25 @@ def test_training_labels_use_the_class_order_the_runtime_reads():
     # The opposite labelling disagrees on both moves.
     train.direction_losses(cfg, dist, logits, np.zeros(3, np.float32), -aot, torch.full((3,), 1 / 3), "", out)
     assert float(out["metric/aot_accuracy"]) == pytest.approx(1 / 3)
+
+
+def test_dynamic_dimensions_are_probed_at_load(tmp_path):
+    """An ONNX file may leave the embedding width dynamic; a model.json that
+    disagrees with what the network really outputs is a load error naming the
+    file and tensor, not a broadcast panic on the first input."""
+    import onnx
+
+    pkg = package(tmp_path / "pkg")
+    for name in ("direction_encoder.onnx", "direction_decoder.onnx"):
+        model = onnx.load(pkg / name)
+        for value in [*model.graph.input, *model.graph.output]:
+            dims = value.type.tensor_type.shape.dim
+            if value.name.endswith("embedding") and len(dims) == 2:
+                dims[1].dim_param = "width"  # dynamic: the static check cannot see it
+        onnx.save(model, pkg / name)
+    assert len(choose(pkg, "explore")) == 6  # still a good package
+    meta = json.loads((pkg / "model.json").read_text())
+    meta["embedding"] = 2 * meta["embedding"]
+    (pkg / "model.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match=r"direction_encoder\.onnx.*dist_embedding.*expected \[1, 32\]"):
+        umpnet.Policy(str(pkg))

@@ -315,13 +315,61 @@ impl ModelPackage {
                 decoder,
             }));
         }
-        Ok(Self {
+        let pkg = Self {
             dir: dir.to_path_buf(),
             meta,
             branches,
             pool,
             decoder_outputs,
-        })
+        };
+        pkg.probe()?;
+        Ok(pkg)
+    }
+
+    /// One dummy run through every network (batch 1, zeros) with the shapes of
+    /// its outputs checked against model.json. ONNX files keep the batch and
+    /// other dimensions dynamic, so a package whose embedding or candidate width
+    /// disagrees with model.json passes the static checks and would fail on its
+    /// first real input; here it fails at load, naming the file and the tensor.
+    fn probe(&self) -> Result<()> {
+        let (h, w, e) = (
+            self.meta.input.height,
+            self.meta.input.width,
+            self.meta.embedding,
+        );
+        let check = |file: &str, tensor: &str, found: &[usize], expected: &[usize]| {
+            if found == expected {
+                Ok(())
+            } else {
+                Err(pkg_err(
+                    &self.dir.join(file),
+                    format!(
+                        "output `{tensor}` has shape {found:?} on a batch of 1, expected {expected:?} (from model.json)"
+                    ),
+                ))
+            }
+        };
+        let files = &self.meta.files;
+        let obs = ndarray::Array4::<f32>::zeros((1, h, w, CHANNELS));
+        let pixel = ndarray::arr2(&[[(h / 2) as i64, (w / 2) as i64]]);
+        let affordance = self.position(obs.view())?;
+        check(&files.position, "affordance", affordance.shape(), &[1, h, w])?;
+        let (de, ae) = self.encode(obs.view(), obs.view(), pixel.view())?;
+        check(&files.direction_encoder, "dist_embedding", de.shape(), &[1, e])?;
+        check(&files.direction_encoder, "aot_embedding", ae.shape(), &[1, e])?;
+        if self.branches == Branches::Inverse {
+            let d = self.predict_direction(de.view(), ae.view())?;
+            return check(&files.direction_decoder, "predicted_direction", d.shape(), &[1, 3]);
+        }
+        let dirs = ndarray::arr2(&[[1.0f32, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        let (de2, ae2) = (
+            ndarray::concatenate![Axis(0), de, de],
+            ndarray::concatenate![Axis(0), ae, ae],
+        );
+        let scores = self.decode(de2.view(), ae2.view(), dirs.view())?;
+        let name = self.decoder_outputs[0].as_str();
+        check(&files.direction_decoder, name, scores.distance.shape(), &[2])?;
+        check(&files.direction_decoder, "aot_probs", scores.aot_probs.shape(), &[2, 3])
     }
 
     fn with_sessions<T>(&self, f: impl FnOnce(&mut Sessions) -> Result<T>) -> Result<T> {
@@ -457,17 +505,20 @@ impl ModelPackage {
                 out[k].try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
             };
             // Columns in the package's class order -> canonical (-1, 0, +1).
-            let canonical = |p: Array2<f32>| -> Array2<f32> {
+            let canonical = |p: Array2<f32>| -> Result<Array2<f32>> {
+                if p.ncols() != 3 {
+                    return Err(pkg_err(&file, format!("output `aot_probs` has {} columns, expected 3", p.ncols())));
+                }
                 let mut out = p.clone();
                 for (k, c) in self.meta.aot_classes.iter().enumerate() {
                     out.column_mut((c + 1) as usize).assign(&p.column(k));
                 }
-                out
+                Ok(out)
             };
             Ok(match self.branches {
-                Branches::DistAot => DirectionScores { distance: get1("distance")?, aot_probs: canonical(get2("aot_probs")?) },
+                Branches::DistAot => DirectionScores { distance: get1("distance")?, aot_probs: canonical(get2("aot_probs")?)? },
                 Branches::AotOnly => {
-                    let p = canonical(get2("aot_probs")?);
+                    let p = canonical(get2("aot_probs")?)?;
                     // No distance branch: rank by the probability of an effective move.
                     let d = p.index_axis(Axis(1), 0).to_owned() + p.index_axis(Axis(1), 2);
                     DirectionScores { distance: d, aot_probs: p }
