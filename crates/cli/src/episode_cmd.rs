@@ -252,9 +252,8 @@ fn contact_sheet(pics: &[RgbImage]) -> RgbImage {
 }
 
 fn write_gif(pics: &[RgbImage], path: &std::path::Path) -> Result<()> {
-    let file =
-        std::fs::File::create(path).with_context(|| format!("writing {}", path.display()))?;
-    let mut enc = image::codecs::gif::GifEncoder::new_with_speed(file, 10);
+    let mut bytes = Vec::new();
+    let mut enc = image::codecs::gif::GifEncoder::new_with_speed(&mut bytes, 10);
     enc.set_repeat(image::codecs::gif::Repeat::Infinite)?;
     for p in pics {
         let rgba = image::DynamicImage::ImageRgb8(p.clone()).to_rgba8();
@@ -265,5 +264,6 @@ fn write_gif(pics: &[RgbImage], path: &std::path::Path) -> Result<()> {
             image::Delay::from_numer_denom_ms(600, 1),
         ))?;
     }
-    Ok(())
+    drop(enc);
+    Ok(umpnet_sim::fsio::write_atomic(path, &bytes)?)
 }

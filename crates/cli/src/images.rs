@@ -94,9 +94,12 @@ pub fn normal_image(f: &Frame) -> RgbImage {
     img
 }
 
+/// Encodes in memory, then writes atomically (see `umpnet_sim::fsio`).
 pub fn save(img: &RgbImage, path: &Path) -> Result<()> {
-    img.save(path)
-        .with_context(|| format!("writing {}", path.display()))
+    let mut png = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut png, image::ImageFormat::Png)
+        .with_context(|| format!("encoding {}", path.display()))?;
+    Ok(umpnet_sim::fsio::write_atomic(path, png.get_ref())?)
 }
 
 /// Projects a world point into pixel coordinates (x = col, y = row).

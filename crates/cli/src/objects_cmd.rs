@@ -47,9 +47,9 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
             }
             pb.finish_and_clear();
             let value = serde_json::json!({"dataset_seed": seed, "categories": split});
-            std::fs::write(
-                out.join("split.json"),
-                serde_json::to_string_pretty(&value)?,
+            umpnet_sim::fsio::write_atomic(
+                &out.join("split.json"),
+                serde_json::to_string_pretty(&value)?.as_bytes(),
             )?;
             let secs = t0.elapsed().as_secs_f64();
             if ctx.json {

@@ -36,9 +36,9 @@ pub fn run(ctx: &Ctx, a: &RenderArgs) -> Result<()> {
         "world_from_camera": f.world_from_camera.to_mat4().transpose().to_cols_array_2d(),
         "depth_range_m": [lo, hi], "renderer": env.renderer_name(), "scene": scene,
     });
-    std::fs::write(
-        a.out.join("camera.json"),
-        serde_json::to_string_pretty(&cam)?,
+    umpnet_sim::fsio::write_atomic(
+        &a.out.join("camera.json"),
+        serde_json::to_string_pretty(&cam)?.as_bytes(),
     )?;
     let depth_bytes: Vec<u8> = f.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
     write_npy_f32(
@@ -77,5 +77,5 @@ pub fn write_npy_f32(path: &std::path::Path, shape: &[usize], data: &[u8]) -> Re
     out.extend_from_slice(&(header.len() as u16).to_le_bytes());
     out.extend_from_slice(header.as_bytes());
     out.extend_from_slice(data);
-    std::fs::write(path, out).with_context(|| format!("writing {}", path.display()))
+    Ok(umpnet_sim::fsio::write_atomic(path, &out)?)
 }

@@ -353,13 +353,33 @@ impl ModelPackage {
         let obs = ndarray::Array4::<f32>::zeros((1, h, w, CHANNELS));
         let pixel = ndarray::arr2(&[[(h / 2) as i64, (w / 2) as i64]]);
         let affordance = self.position(obs.view())?;
-        check(&files.position, "affordance", affordance.shape(), &[1, h, w])?;
+        check(
+            &files.position,
+            "affordance",
+            affordance.shape(),
+            &[1, h, w],
+        )?;
         let (de, ae) = self.encode(obs.view(), obs.view(), pixel.view())?;
-        check(&files.direction_encoder, "dist_embedding", de.shape(), &[1, e])?;
-        check(&files.direction_encoder, "aot_embedding", ae.shape(), &[1, e])?;
+        check(
+            &files.direction_encoder,
+            "dist_embedding",
+            de.shape(),
+            &[1, e],
+        )?;
+        check(
+            &files.direction_encoder,
+            "aot_embedding",
+            ae.shape(),
+            &[1, e],
+        )?;
         if self.branches == Branches::Inverse {
             let d = self.predict_direction(de.view(), ae.view())?;
-            return check(&files.direction_decoder, "predicted_direction", d.shape(), &[1, 3]);
+            return check(
+                &files.direction_decoder,
+                "predicted_direction",
+                d.shape(),
+                &[1, 3],
+            );
         }
         let dirs = ndarray::arr2(&[[1.0f32, 0.0, 0.0], [0.0, 1.0, 0.0]]);
         let (de2, ae2) = (
@@ -368,8 +388,18 @@ impl ModelPackage {
         );
         let scores = self.decode(de2.view(), ae2.view(), dirs.view())?;
         let name = self.decoder_outputs[0].as_str();
-        check(&files.direction_decoder, name, scores.distance.shape(), &[2])?;
-        check(&files.direction_decoder, "aot_probs", scores.aot_probs.shape(), &[2, 3])
+        check(
+            &files.direction_decoder,
+            name,
+            scores.distance.shape(),
+            &[2],
+        )?;
+        check(
+            &files.direction_decoder,
+            "aot_probs",
+            scores.aot_probs.shape(),
+            &[2, 3],
+        )
     }
 
     fn with_sessions<T>(&self, f: impl FnOnce(&mut Sessions) -> Result<T>) -> Result<T> {

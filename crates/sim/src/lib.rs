@@ -3,6 +3,7 @@
 //! URDF (PartNet-Mobility or generated) -> [`urdf::ObjectModel`] ->
 //! [`physics::Articulation`] (rapier3d multibody + suction gripper).
 pub mod error;
+pub mod fsio;
 pub mod math;
 pub mod mesh;
 pub mod physics;

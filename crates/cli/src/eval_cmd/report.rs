@@ -194,11 +194,8 @@ impl Report {
     }
 }
 
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
-    let tmp = path.with_file_name(format!(".{}.tmp", name.unwrap_or_default()));
-    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    Ok(umpnet_sim::fsio::write_atomic(path, bytes)?)
 }
 
 fn render_table(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {

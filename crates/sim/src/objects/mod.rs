@@ -192,9 +192,9 @@ impl GeneratedObject {
         std::fs::create_dir_all(dir.join("textured_objs")).map_err(|e| io(&dir, e))?;
         for (rel, mesh) in &self.meshes {
             let p = dir.join(rel);
-            std::fs::write(&p, mesh.to_obj()).map_err(|e| io(&p, e))?;
+            crate::fsio::write_atomic(&p, mesh.to_obj().as_bytes())?;
         }
-        std::fs::write(&urdf, &self.urdf).map_err(|e| io(&urdf, e))?;
+        crate::fsio::write_atomic(&urdf, self.urdf.as_bytes())?;
         let pose = generated_pose();
         let meta = serde_json::json!({
             "orientation": pose.orientation,
@@ -202,7 +202,7 @@ impl GeneratedObject {
             "scale": pose.scale,
         });
         let meta_path = dir.join("object_meta_info.json");
-        std::fs::write(&meta_path, meta.to_string()).map_err(|e| io(&meta_path, e))?;
+        crate::fsio::write_atomic(&meta_path, meta.to_string().as_bytes())?;
         Ok(urdf)
     }
 }
@@ -234,9 +234,6 @@ pub fn write_dataset(
     let value = serde_json::json!({"dataset_seed": dataset_seed, "categories": split});
     let path = root.join("split.json");
     let text = serde_json::to_string_pretty(&value).map_err(|e| SimError::Other(e.to_string()))?;
-    std::fs::write(&path, text).map_err(|e| SimError::Io {
-        file: path,
-        source: e,
-    })?;
+    crate::fsio::write_atomic(&path, text.as_bytes())?;
     Ok(value)
 }
