@@ -259,18 +259,34 @@ impl UmpnetPolicy {
         for c in cands {
             out.push(
                 (0..c.len())
-                    .map(|k| {
-                        let p = s.aot_probs.row(row + k);
-                        let cls = (0..3).max_by(|x, y| p[*x].total_cmp(&p[*y])).unwrap_or(1);
-                        Score {
-                            distance: s.distance[row + k],
-                            aot: cls as i8 - 1,
-                        }
+                    .map(|k| Score {
+                        distance: s.distance[row + k],
+                        aot: most_likely_aot(s.aot_probs.row(row + k)),
                     })
                     .collect(),
             );
             row += c.len();
         }
         Ok(out)
+    }
+}
+
+/// The most probable class of a row of AoT probabilities in the canonical
+/// order (-1, 0, +1), as the AoT value.
+fn most_likely_aot(p: ndarray::ArrayView1<f32>) -> i8 {
+    let cls = (0..3).max_by(|x, y| p[*x].total_cmp(&p[*y])).unwrap_or(1);
+    cls as i8 - 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::most_likely_aot;
+
+    #[test]
+    fn aot_probabilities_are_read_in_the_order_minus_one_zero_plus_one() {
+        let aot = |p: [f32; 3]| most_likely_aot(ndarray::aview1(&p));
+        assert_eq!(aot([0.7, 0.2, 0.1]), -1);
+        assert_eq!(aot([0.2, 0.7, 0.1]), 0);
+        assert_eq!(aot([0.1, 0.2, 0.7]), 1);
     }
 }
