@@ -228,6 +228,38 @@ def test_sharded_eval_merges_to_the_unsharded_run_byte_for_byte(tmp_path):
     p = run("eval", "merge", str(whole), check=False)
     assert p.returncode == 2 and "not a shard" in p.stderr
     other = tmp_path / "other"
-    run(*common[:-4], "--policies", "random", "--renderer", "cpu", "--shard", "1/3", "--out", str(other))
+    run(*common[:7], "--policies", "random", "--renderer", "cpu", "--shard", "1/3", "--out", str(other))
     p = run("eval", "merge", str(other), shards[1], shards[2], check=False)
     assert p.returncode == 2 and "not a shard of the same evaluation" in p.stderr and "policies" in p.stderr
+
+
+def test_unix_manners_and_clear_lookups(tmp_path):
+    # A closed pipe ends the listing quietly, as Unix tools do.
+    p = subprocess.run(
+        f"{UMPNET} objects list | head -1", shell=True, capture_output=True, text=True, timeout=120, check=False
+    )
+    assert p.returncode == 0 and p.stdout.strip() and "panicked" not in p.stderr, p.stderr
+    # One policy listed twice would merge two runs into one cell.
+    p = run("eval", "--categories", "Door", "--episodes-per-category", "1", "--policies", "oracle,oracle", check=False)
+    assert p.returncode == 2 and "listed twice" in p.stderr
+    # Outside the repository, with no model installed: say where it looked.
+    lonely = tmp_path / "bin" / "umpnet"
+    lonely.parent.mkdir()
+    lonely.write_bytes(Path(UMPNET).read_bytes())
+    lonely.chmod(0o755)
+    env = {k: v for k, v in os.environ.items() if k != "UMPNET_MODEL"} | {"XDG_DATA_HOME": str(tmp_path / "data")}
+    args = [str(lonely), "explore", "--category", "Door", "--policy", "umpnet"]
+    p = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120, check=False)
+    assert p.returncode == 2 and "UMPNET_MODEL" in p.stderr and str(tmp_path / "data") in p.stderr, p.stderr
+    # ...and finds one the way an installed tool does; ONNX Runtime likewise
+    # (ORT_DYLIB_PATH), and its message says so, once.
+    env["UMPNET_MODEL"] = str(ROOT / "models" / "umpnet-small")
+    p = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300, check=False)
+    if p.returncode != 0:
+        assert "ORT_DYLIB_PATH" in p.stderr and p.stderr.count("ONNX Runtime:") == 1, p.stderr
+        import onnxruntime
+
+        libs = sorted((Path(onnxruntime.__file__).parent / "capi").glob("libonnxruntime.so*"))
+        env["ORT_DYLIB_PATH"] = str(libs[0])
+        p = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300, check=False)
+    assert p.returncode == 0, p.stderr

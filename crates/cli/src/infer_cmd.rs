@@ -157,10 +157,10 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
             "--intrinsics takes fx,fy,cx,cy and --camera-pose 16 numbers",
         ));
     }
-    let model = a
-        .model
-        .clone()
-        .unwrap_or_else(crate::policies::default_model);
+    let model = match &a.model {
+        Some(m) => m.clone(),
+        None => crate::policies::default_model()?,
+    };
     let pkg = ModelPackage::load(&model, 1, 1, None)
         .with_context(|| format!("loading {}", model.display()))?;
     let policy = UmpnetPolicy::new(std::sync::Arc::new(pkg));

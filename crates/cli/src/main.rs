@@ -180,6 +180,12 @@ impl ObjectArgs {
 }
 
 fn main() {
+    // As Unix tools do: `umpnet objects list | head -1` ends quietly when the
+    // reader goes away, instead of panicking in println! on EPIPE.
+    // SAFETY: called first, before any thread exists; SIG_DFL is always valid.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => e.exit(), // clap: usage errors exit with 2, --help/--version with 0

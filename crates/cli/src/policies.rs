@@ -8,18 +8,44 @@ use umpnet_eval::bench::PolicyFactory;
 use umpnet_eval::learned::LearnedPolicy;
 use umpnet_sim::scene::Task;
 
-/// The shipped model, looked for beside the working directory and the executable.
-pub fn default_model() -> PathBuf {
+/// Where the shipped model is looked for, in order: $UMPNET_MODEL (a package
+/// directory), `models/umpnet-small` under the working directory, under
+/// $XDG_DATA_HOME/umpnet (or ~/.local/share/umpnet), and beside the binary
+/// or any directory above it (a build in the repository, or an install
+/// prefix's `share/umpnet`).
+pub fn default_model_candidates() -> Vec<PathBuf> {
     let rel = Path::new("models").join("umpnet-small");
-    let exe = std::env::current_exe().ok();
-    let mut candidates: Vec<PathBuf> = vec![rel.clone()];
-    if let Some(e) = exe {
-        candidates.extend(e.ancestors().map(|a| a.join(&rel)));
+    let mut candidates: Vec<PathBuf> = Vec::new();
+    if let Some(p) = std::env::var_os("UMPNET_MODEL") {
+        candidates.push(PathBuf::from(p));
+    }
+    candidates.push(rel.clone());
+    let data = std::env::var_os("XDG_DATA_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".local/share")));
+    if let Some(d) = data {
+        candidates.push(d.join("umpnet").join(&rel));
+    }
+    if let Ok(exe) = std::env::current_exe() {
+        for dir in exe.ancestors().skip(1) {
+            candidates.push(dir.join(&rel));
+            candidates.push(dir.join("share").join("umpnet").join(&rel));
+        }
     }
     candidates
-        .into_iter()
-        .find(|p| p.join("model.json").is_file())
-        .unwrap_or(rel)
+}
+
+/// The shipped model package, or an error that lists where it was looked for.
+pub fn default_model() -> Result<PathBuf> {
+    let candidates = default_model_candidates();
+    if let Some(found) = candidates.iter().find(|p| p.join("model.json").is_file()) {
+        return Ok(found.clone());
+    }
+    let listed: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
+    Err(usage(format!(
+        "no model package found (pass --model DIR or set UMPNET_MODEL); looked in: {}",
+        listed.join(", ")
+    )))
 }
 
 pub struct Resolved {
@@ -38,6 +64,15 @@ pub fn resolve(
     task: Task,
 ) -> Result<Resolved> {
     let mut factories: Vec<(String, PolicyFactory)> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for spec in specs {
+        let name = spec.split_once('=').map_or(spec.as_str(), |(n, _)| n);
+        if !seen.insert(name) {
+            return Err(usage(format!(
+                "policy `{name}` is listed twice; give each policy its own name (NAME=MODEL_DIR)"
+            )));
+        }
+    }
     let mut resolution: Option<(u32, u32)> = None;
     let mut packages = Vec::new();
     for spec in specs {
@@ -45,7 +80,10 @@ pub fn resolve(
             Some((n, d)) => (n.to_string(), Some(PathBuf::from(d))),
             None if spec == "umpnet" => (
                 spec.clone(),
-                Some(model.map(Path::to_path_buf).unwrap_or_else(default_model)),
+                Some(match model {
+                    Some(m) => m.to_path_buf(),
+                    None => default_model()?,
+                }),
             ),
             None => (spec.clone(), None),
         };

@@ -92,8 +92,9 @@ pub fn find_library(explicit: Option<&Path>) -> Result<PathBuf> {
         .or_else(python_library)
         .ok_or_else(|| {
             PolicyError::Runtime(format!(
-                "cannot find {ORT_LIBRARY}: run `make install` (puts onnxruntime==1.31.1 into .venv), \
-                 `pip install onnxruntime==1.31.1`, or set ORT_DYLIB_PATH to the library"
+                "cannot find {ORT_LIBRARY} (looked at ORT_DYLIB_PATH, in a .venv above the binary \
+                 and the working directory, and in python3's onnxruntime): set ORT_DYLIB_PATH to \
+                 the library, e.g. from `pip install onnxruntime==1.31.1`"
             ))
         })
 }
@@ -110,7 +111,10 @@ pub fn environment(explicit: Option<&Path>) -> Result<&'static ort::environment:
 pub fn ensure_loaded(explicit: Option<&Path>) -> Result<PathBuf> {
     LOADED
         .get_or_init(|| {
-            let path = find_library(explicit).map_err(|e| e.to_string())?;
+            let path = find_library(explicit).map_err(|e| match e {
+                PolicyError::Runtime(m) => m,
+                other => other.to_string(),
+            })?;
             let builder =
                 ort::init_from(&path).map_err(|e| format!("loading {}: {e}", path.display()))?;
             let env = builder

@@ -193,6 +193,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     }
     let report = Report {
         run: RunInfo {
+            umpnet_version: env!("CARGO_PKG_VERSION").into(),
             task: a.task,
             seed: a.seed,
             episodes_per_category: a.episodes_per_category,

@@ -17,6 +17,8 @@ use umpnet_sim::scene::Task;
 /// theirs are equal.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RunInfo {
+    /// The umpnet that ran (the crate version).
+    pub umpnet_version: String,
     pub task: Task,
     pub seed: u64,
     pub episodes_per_category: u32,
