@@ -70,6 +70,14 @@ def test_eval_is_identical_for_one_and_two_threads(tmp_path):
         assert (d / "curve.png").stat().st_size > 1000
         assert "oracle" in (d / "table.txt").read_text()
     assert results[0] == results[1]
+    # Success rates carry Wilson intervals: 4 of 4 is not "1.00 +- 0.00".
+    rows = [r.split(",") for r in results[0].splitlines()]
+    assert rows[0] == ["policy", "category", "split", "metric", "mean", "ci95", "ci_low", "ci_high", "n"]
+    oracle = [r for r in rows if r[0] == "oracle" and r[3] == "success_rate" and r[1] != "average"]
+    assert oracle and all(float(r[4]) == 1.0 and 0.4 < float(r[6]) < 0.6 for r in oracle), oracle
+    assert any(r[1] == "average" for r in rows)
+    assert "| **average** |" in (tmp_path / "2" / "results.md").read_text()
+    assert "\\begin{tabular}" in (tmp_path / "2" / "results.tex").read_text()
 
 
 def test_render_writes_images_and_depth(tmp_path):
@@ -215,7 +223,7 @@ def test_sharded_eval_merges_to_the_unsharded_run_byte_for_byte(tmp_path):
     run("eval", "merge", *shards, "--out", str(tmp_path / "merged"))
     whole, merged = tmp_path / "whole", tmp_path / "merged"
     assert _without_wall_time(merged / "results.json") == _without_wall_time(whole / "results.json")
-    for name in ("results.csv", "table.txt", "curve.png"):
+    for name in ("results.csv", "results.md", "results.tex", "table.txt", "curve.png"):
         assert (merged / name).read_bytes() == (whole / name).read_bytes(), name
     n = len(json.loads((whole / "results.json").read_text())["episodes"])
     assert n == 3 * 3 * 3  # categories x scenes x (random, umpnet, oracle)

@@ -293,6 +293,18 @@ fn run_scene(
         .collect()
 }
 
+/// The 95% Wilson score interval of a success rate (k successes of n): unlike
+/// the normal approximation it is not zero-width at 0 or 1.
+pub fn wilson(successes: usize, n: usize) -> (f64, f64) {
+    if n == 0 {
+        return (f64::NAN, f64::NAN);
+    }
+    let (n, p, z) = (n as f64, successes as f64 / n as f64, 1.96f64);
+    let centre = (p + z * z / (2.0 * n)) / (1.0 + z * z / n);
+    let half = z / (1.0 + z * z / n) * (p * (1.0 - p) / n + z * z / (4.0 * n * n)).sqrt();
+    ((centre - half).max(0.0), (centre + half).min(1.0))
+}
+
 /// Mean and half-width of the 95% interval (normal approximation).
 pub fn mean_ci(values: &[f64]) -> (f64, f64) {
     let n = values.len() as f64;
@@ -305,4 +317,25 @@ pub fn mean_ci(values: &[f64]) -> (f64, f64) {
     }
     let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
     (mean, 1.96 * (var / n).sqrt())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wilson_intervals_match_the_formula_and_are_not_empty_at_the_ends() {
+        // 10 of 10: the normal approximation says 1.00 +- 0.00.
+        let (lo, hi) = wilson(10, 10);
+        assert!((lo - 0.7225).abs() < 1e-3 && hi == 1.0, "{lo} {hi}");
+        let (lo, hi) = wilson(0, 20);
+        assert!(lo == 0.0 && (hi - 0.1611).abs() < 1e-3, "{lo} {hi}");
+        // 23 of 50 (0.46): [0.3297, 0.5961].
+        let (lo, hi) = wilson(23, 50);
+        assert!(
+            (lo - 0.3297).abs() < 1e-3 && (hi - 0.5961).abs() < 1e-3,
+            "{lo} {hi}"
+        );
+        assert!(wilson(0, 0).0.is_nan());
+    }
 }

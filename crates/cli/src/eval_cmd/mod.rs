@@ -3,6 +3,7 @@
 mod merge;
 mod plot;
 mod report;
+mod tables;
 
 use crate::{Ctx, usage};
 use anyhow::{Context, Result};

@@ -4,10 +4,9 @@
 //! what makes a merged report byte-identical to an unsharded one.
 use anyhow::{Context, Result, bail};
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 use std::path::Path;
 use umpnet_eval::Protocol;
-use umpnet_eval::bench::{Shard, mean_ci};
+use umpnet_eval::bench::Shard;
 use umpnet_eval::episode::Metrics;
 use umpnet_sim::objects::Category;
 use umpnet_sim::physics::PhysicsProfile;
@@ -58,26 +57,7 @@ pub struct ScoredEpisode {
     pub metrics: Metrics,
 }
 
-type Cells = BTreeMap<(String, Category, &'static str), Vec<f64>>;
-
-pub fn metrics_of(task: Task) -> &'static [(&'static str, &'static str)] {
-    match task {
-        Task::Exploration => &[
-            ("novel_state_ratio", "novel-state ratio (higher is better)"),
-            (
-                "single_action_effect",
-                "single action effect (higher is better)",
-            ),
-        ],
-        Task::Goal => &[
-            (
-                "normalized_distance",
-                "normalized distance (lower is better)",
-            ),
-            ("success_rate", "success rate (higher is better)"),
-        ],
-    }
-}
+use super::tables::{self, Cells, metrics_of};
 
 fn value(m: &Metrics, metric: &str) -> Option<f64> {
     Some(match metric {
@@ -134,8 +114,9 @@ impl Report {
             cells
                 .iter()
                 .map(|((p, c, m), v)| {
-                    let (mean, ci) = mean_ci(v);
-                    serde_json::json!({"policy": p, "category": c.name(), "metric": m, "mean": mean, "ci95": ci, "n": v.len()})
+                    let st = tables::stat(m, v);
+                    serde_json::json!({"policy": p, "category": c.name(), "metric": m, "mean": st.mean,
+                        "ci95": (st.hi - st.lo) / 2.0, "ci_low": st.lo, "ci_high": st.hi, "n": st.n})
                 })
                 .collect(),
         );
@@ -146,7 +127,7 @@ impl Report {
     }
 
     pub fn table(&self, scored: &[Scored]) -> String {
-        render_table(
+        tables::screen(
             self.run.task,
             &self.run.policies,
             &self.run.categories,
@@ -155,7 +136,7 @@ impl Report {
     }
 
     /// results.json always; a whole evaluation also gets results.csv,
-    /// table.txt and curve.png (a shard's share of the tables would mislead).
+    /// results.md, results.tex, table.txt and curve.png (a shard's share of the tables would mislead).
     /// Each file is written beside and renamed, so a crash never leaves a
     /// half-written one in place of a good one.
     pub fn write(&self, scored: &[Scored], out: &Path) -> Result<Vec<&'static str>> {
@@ -169,20 +150,31 @@ impl Report {
             return Ok(vec!["results.json"]);
         }
         let cells = self.cells(scored);
-        let mut csv = String::from("policy,category,split,metric,mean,ci95,n\n");
-        for ((p, c, m), v) in &cells {
-            let (mean, ci) = mean_ci(v);
-            let _ = writeln!(
-                csv,
-                "{p},{},{},{m},{mean:.6},{ci:.6},{}",
-                c.name(),
-                if c.is_train() { "train" } else { "test" },
-                v.len()
-            );
+        let (task, policies, categories) =
+            (self.run.task, &self.run.policies, &self.run.categories);
+        let files: [(&'static str, String); 4] = [
+            (
+                "results.csv",
+                tables::csv(task, policies, categories, &cells),
+            ),
+            (
+                "results.md",
+                tables::markdown(task, policies, categories, &cells),
+            ),
+            (
+                "results.tex",
+                tables::latex(task, policies, categories, &cells),
+            ),
+            (
+                "table.txt",
+                tables::screen(task, policies, categories, &cells),
+            ),
+        ];
+        let mut written = vec!["results.json"];
+        for (name, text) in files {
+            write_atomic(&out.join(name), text.as_bytes())?;
+            written.push(name);
         }
-        write_atomic(&out.join("results.csv"), csv.as_bytes())?;
-        write_atomic(&out.join("table.txt"), self.table(scored).as_bytes())?;
-        let mut written = vec!["results.json", "results.csv", "table.txt"];
         match crate::eval_cmd::plot::plot_curves(
             self.run.task,
             &self.run.policies,
@@ -198,58 +190,4 @@ impl Report {
 
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(umpnet_sim::fsio::write_atomic(path, bytes)?)
-}
-
-fn render_table(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {
-    let mut s = String::from("(oracle: the ceiling, privileged policy under the same protocol)\n");
-    let short = |c: &Category| c.name().chars().take(7).collect::<String>();
-    let width = policies
-        .iter()
-        .map(|p| p.chars().count())
-        .max()
-        .unwrap_or(0)
-        .max(10);
-    for (metric, title) in metrics_of(task) {
-        let _ = writeln!(s, "\n{title}");
-        for (split_name, train) in [
-            ("train categories (held-out instances)", true),
-            ("test categories", false),
-        ] {
-            let cats: Vec<&Category> = categories
-                .iter()
-                .filter(|c| c.is_train() == train)
-                .collect();
-            if cats.is_empty() {
-                continue;
-            }
-            let _ = write!(s, "  {split_name}\n  {:<width$}", "method");
-            for c in &cats {
-                let _ = write!(s, " {:>7}", short(c));
-            }
-            let _ = writeln!(s, " {:>7}", "avg");
-            for p in policies {
-                let _ = write!(s, "  {p:<width$}");
-                let mut means = Vec::new();
-                for c in &cats {
-                    match cells.get(&(p.clone(), **c, *metric)) {
-                        Some(v) => {
-                            let (m, _) = mean_ci(v);
-                            means.push(m);
-                            let _ = write!(s, " {m:>7.2}");
-                        }
-                        None => {
-                            let _ = write!(s, " {:>7}", "-");
-                        }
-                    }
-                }
-                let avg = if means.is_empty() {
-                    f64::NAN
-                } else {
-                    means.iter().sum::<f64>() / means.len() as f64
-                };
-                let _ = writeln!(s, " {avg:>7.2}");
-            }
-        }
-    }
-    s
 }

@@ -1,0 +1,257 @@
+//! The tables of an evaluation: on screen (table.txt), CSV, Markdown and
+//! LaTeX, from the per-cell values. Success rates get Wilson intervals,
+//! continuous metrics the normal approximation.
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use umpnet_eval::bench::{mean_ci, wilson};
+use umpnet_sim::objects::Category;
+use umpnet_sim::scene::Task;
+
+/// (policy, category, metric) -> one value per episode.
+pub type Cells = BTreeMap<(String, Category, &'static str), Vec<f64>>;
+
+pub fn metrics_of(task: Task) -> &'static [(&'static str, &'static str)] {
+    match task {
+        Task::Exploration => &[
+            ("novel_state_ratio", "novel-state ratio (higher is better)"),
+            (
+                "single_action_effect",
+                "single action effect (higher is better)",
+            ),
+        ],
+        Task::Goal => &[
+            (
+                "normalized_distance",
+                "normalized distance (lower is better)",
+            ),
+            ("success_rate", "success rate (higher is better)"),
+        ],
+    }
+}
+
+/// Mean and 95% interval of one cell.
+pub struct Stat {
+    pub mean: f64,
+    pub lo: f64,
+    pub hi: f64,
+    pub n: usize,
+}
+
+pub fn stat(metric: &str, values: &[f64]) -> Stat {
+    let (mean, half) = mean_ci(values);
+    let (lo, hi) = if metric == "success_rate" {
+        wilson(values.iter().filter(|v| **v > 0.5).count(), values.len())
+    } else {
+        (mean - half, mean + half)
+    };
+    Stat {
+        mean,
+        lo,
+        hi,
+        n: values.len(),
+    }
+}
+
+const SPLITS: [(&str, bool); 2] = [
+    ("train categories (held-out instances)", true),
+    ("test categories", false),
+];
+
+fn split_name(c: Category) -> &'static str {
+    if c.is_train() { "train" } else { "test" }
+}
+
+fn mean_of_means(cells: &Cells, p: &str, cats: &[&Category], metric: &str) -> Option<f64> {
+    let means: Vec<f64> = cats
+        .iter()
+        .filter_map(|c| cells.get(&(p.to_string(), **c, metric)))
+        .map(|v| mean_ci(v).0)
+        .collect();
+    (!means.is_empty()).then(|| means.iter().sum::<f64>() / means.len() as f64)
+}
+
+/// The screen table: per metric and split, a row of means per policy with
+/// the 95% interval's half-width below it.
+pub fn screen(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {
+    let mut s = String::from("(oracle: the ceiling, privileged policy under the same protocol)\n");
+    let width = policies
+        .iter()
+        .map(|p| p.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(10);
+    for (metric, title) in metrics_of(task) {
+        let _ = writeln!(s, "\n{title}; below each row, +- the 95% interval");
+        for (split_label, train) in SPLITS {
+            let cats: Vec<&Category> = categories
+                .iter()
+                .filter(|c| c.is_train() == train)
+                .collect();
+            if cats.is_empty() {
+                continue;
+            }
+            let col = |c: &Category| c.name().len().max(6);
+            let _ = write!(s, "  {split_label}\n  {:<width$}", "method");
+            for c in &cats {
+                let _ = write!(s, " {:>w$}", c.name(), w = col(c));
+            }
+            let _ = writeln!(s, " {:>7}", "avg");
+            for p in policies {
+                let mut means = format!("  {p:<width$}");
+                let mut halves = format!("  {:<width$}", "");
+                for c in &cats {
+                    match cells.get(&(p.clone(), **c, *metric)) {
+                        Some(v) => {
+                            let st = stat(metric, v);
+                            let _ = write!(means, " {:>w$.2}", st.mean, w = col(c));
+                            let half = format!("+-{:.2}", (st.hi - st.lo) / 2.0);
+                            let _ = write!(halves, " {half:>w$}", w = col(c));
+                        }
+                        None => {
+                            let _ = write!(means, " {:>w$}", "-", w = col(c));
+                            let _ = write!(halves, " {:>w$}", "", w = col(c));
+                        }
+                    }
+                }
+                let avg = mean_of_means(cells, p, &cats, metric).unwrap_or(f64::NAN);
+                let _ = writeln!(s, "{means} {avg:>7.2}\n{}", halves.trim_end());
+            }
+        }
+    }
+    s
+}
+
+/// results.csv: one row per cell with its interval, then one average row per
+/// (policy, split, metric): the mean over that split's categories.
+pub fn csv(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {
+    let mut out = String::from("policy,category,split,metric,mean,ci95,ci_low,ci_high,n\n");
+    for ((p, c, m), v) in cells {
+        let st = stat(m, v);
+        let _ = writeln!(
+            out,
+            "{p},{},{},{m},{:.6},{:.6},{:.6},{:.6},{}",
+            c.name(),
+            split_name(*c),
+            st.mean,
+            (st.hi - st.lo) / 2.0,
+            st.lo,
+            st.hi,
+            st.n
+        );
+    }
+    for p in policies {
+        for (metric, _) in metrics_of(task) {
+            for (_, train) in SPLITS {
+                let cats: Vec<&Category> = categories
+                    .iter()
+                    .filter(|c| c.is_train() == train)
+                    .collect();
+                let n: usize = cats
+                    .iter()
+                    .filter_map(|c| cells.get(&(p.clone(), **c, *metric)))
+                    .map(Vec::len)
+                    .sum();
+                if let Some(avg) = mean_of_means(cells, p, &cats, metric) {
+                    let split = if train { "train" } else { "test" };
+                    let _ = writeln!(out, "{p},average,{split},{metric},{avg:.6},,,,{n}");
+                }
+            }
+        }
+    }
+    out
+}
+
+/// results.md: per metric and split, categories as rows and policies as
+/// columns, each cell "mean [low, high]".
+pub fn markdown(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {
+    let mut s = String::new();
+    for (metric, title) in metrics_of(task) {
+        for (split_label, train) in SPLITS {
+            let cats: Vec<&Category> = categories
+                .iter()
+                .filter(|c| c.is_train() == train)
+                .collect();
+            if cats.is_empty() {
+                continue;
+            }
+            let _ = writeln!(s, "### {title}, {split_label}\n");
+            let _ = writeln!(s, "| category | {} |", policies.join(" | "));
+            let _ = writeln!(s, "|---|{}", "---|".repeat(policies.len()));
+            for c in &cats {
+                let _ = write!(s, "| {} |", c.name());
+                for p in policies {
+                    match cells.get(&(p.clone(), **c, *metric)) {
+                        Some(v) => {
+                            let st = stat(metric, v);
+                            let _ = write!(s, " {:.2} [{:.2}, {:.2}] |", st.mean, st.lo, st.hi);
+                        }
+                        None => s.push_str(" - |"),
+                    }
+                }
+                s.push('\n');
+            }
+            s.push_str("| **average** |");
+            for p in policies {
+                match mean_of_means(cells, p, &cats, metric) {
+                    Some(a) => {
+                        let _ = write!(s, " **{a:.2}** |");
+                    }
+                    None => s.push_str(" - |"),
+                }
+            }
+            s.push_str("\n\n");
+        }
+    }
+    s
+}
+
+fn tex_escape(s: &str) -> String {
+    s.replace('\\', "\\textbackslash{}")
+        .replace('_', "\\_")
+        .replace('&', "\\&")
+        .replace('%', "\\%")
+        .replace('#', "\\#")
+}
+
+/// results.tex: the paper's layout (methods as rows, categories as columns,
+/// then the average), means only, one tabular per metric and split.
+pub fn latex(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {
+    let mut s = String::from("% umpnet eval: means over episodes; intervals in results.md/csv\n");
+    for (metric, title) in metrics_of(task) {
+        for (split_label, train) in SPLITS {
+            let cats: Vec<&Category> = categories
+                .iter()
+                .filter(|c| c.is_train() == train)
+                .collect();
+            if cats.is_empty() {
+                continue;
+            }
+            let _ = writeln!(s, "% {title}, {split_label}");
+            let _ = writeln!(s, "\\begin{{tabular}}{{l{}c}}", "c".repeat(cats.len()));
+            s.push_str("\\hline\nmethod");
+            for c in &cats {
+                let _ = write!(s, " & {}", c.name());
+            }
+            s.push_str(" & avg \\\\\n\\hline\n");
+            for p in policies {
+                s.push_str(&tex_escape(p));
+                for c in &cats {
+                    match cells.get(&(p.clone(), **c, *metric)) {
+                        Some(v) => {
+                            let _ = write!(s, " & {:.2}", mean_ci(v).0);
+                        }
+                        None => s.push_str(" & -"),
+                    }
+                }
+                match mean_of_means(cells, p, &cats, metric) {
+                    Some(a) => {
+                        let _ = writeln!(s, " & {a:.2} \\\\");
+                    }
+                    None => s.push_str(" & - \\\\\n"),
+                }
+            }
+            s.push_str("\\hline\n\\end{tabular}\n\n");
+        }
+    }
+    s
+}
