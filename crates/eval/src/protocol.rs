@@ -182,6 +182,48 @@ mod tests {
     }
 
     #[test]
+    fn goal_ends_at_the_exact_boundaries() {
+        // Starting on the goal, only the first clause decides: strictly inside.
+        assert!(reached_goal(1.0, 1.125, 1.0, 0.25));
+        assert!(!reached_goal(1.0, 1.25, 1.0, 0.25));
+        assert!(!reached_goal(1.0, 0.5, 1.0, 0.25));
+        assert!(!reached_goal(1.0, 1.5, 1.0, 0.25));
+        // Coming from above: "below goal + threshold", strictly.
+        assert!(reached_goal(2.0, 0.75, 1.0, 0.25));
+        assert!(!reached_goal(2.0, 1.25, 1.0, 0.25));
+        // Coming from below: "above goal - threshold", strictly.
+        assert!(reached_goal(0.0, 1.25, 1.0, 0.25));
+        assert!(!reached_goal(0.0, 0.75, 1.0, 0.25));
+    }
+
+    #[test]
+    fn paper_walk_is_measured_from_the_start_it_is_given() {
+        // From 0.5: out to 0.75, then back to 0.625 counts negative.
+        let w = paper_walk(0.5, &[0.75, 0.625], 1.0);
+        assert_eq!(w, vec![0.25, 0.125]);
+        // Across the start: out, back past it (negative), then further below it
+        // (away from the start again: positive).
+        let w = paper_walk(0.5, &[0.75, 0.25, 0.0], 1.0);
+        assert_eq!(w, vec![0.25, 0.25, 0.0]);
+        // Exactly 0.02 from the start is still "near": a move back counts forward.
+        let w = paper_walk(0.0, &[0.02, 0.0], 1.0);
+        assert!((w[1] - 0.04).abs() < 1e-7, "{w:?}");
+        let w = paper_walk(0.0, &[0.03125, 0.0], 1.0);
+        assert_eq!(w, vec![0.03125, 0.0]);
+    }
+
+    #[test]
+    fn protocol_names_round_trip() {
+        for p in [Protocol::Paper, Protocol::Strict] {
+            assert_eq!(p.name().parse::<Protocol>(), Ok(p));
+            assert_eq!(p.to_string(), p.name());
+        }
+        assert_eq!(Protocol::Paper.name(), "paper");
+        assert_eq!(Protocol::Strict.name(), "strict");
+        assert!("bullet".parse::<Protocol>().is_err());
+    }
+
+    #[test]
     fn budgets() {
         assert_eq!(
             Protocol::Paper.budget(Task::Goal, Some(Category::Kettle)),

@@ -124,7 +124,19 @@ fn goal_distance_and_success() {
         "{m:?}"
     );
     assert!(close(m.normalized_distance, 0.6) && !m.success);
-    // Success is "below 0.1" of the way.
+    // Success is "below 0.1" of the way, strictly (9 of 10 is exactly 0.1).
+    let m = score(
+        Scoring::Goal {
+            init: 0.0,
+            target: 10.0,
+            now: 9.0,
+        },
+        &[],
+        1,
+        Protocol::Paper,
+        false,
+    );
+    assert!(m.normalized_distance == 0.1 && !m.success);
     for (now, success) in [(0.91, true), (0.89, false)] {
         let m = score(
             Scoring::Goal {
