@@ -125,3 +125,43 @@ def test_dynamic_dimensions_are_probed_at_load(tmp_path):
     (pkg / "model.json").write_text(json.dumps(meta))
     with pytest.raises(ValueError, match=r"direction_encoder\.onnx.*dist_embedding.*expected \[1, 32\]"):
         umpnet.Policy(str(pkg))
+
+
+def test_training_explores_with_the_wanted_arrow_of_time():
+    # The same hand-set decoder: training's greedy choice must follow `wanted`.
+    model, cfg = crafted()
+    n = 4
+    rng = np.random.default_rng(0)
+    obs = {
+        "image": rng.normal(size=(n, cfg.height, cfg.width, 10)).astype(np.float32),
+        "reference": rng.normal(size=(n, cfg.height, cfg.width, 10)).astype(np.float32),
+        "gripper_pixel": np.full((n, 2), 5, np.int64),
+    }
+    for wanted, sign in ((1, 1.0), (-1, -1.0)):
+        dirs, ranked = train.choose_directions(model, "umpnet", obs, np.full(n, wanted), 0.0, rng)
+        assert np.all(sign * dirs[:, 0] > 0.1), (wanted, dirs)
+        assert np.all(sign * ranked[:, 0, 0] > 0.1)
+
+
+def test_the_distance_loss_reaches_the_distance_head():
+    model, cfg = crafted()
+    x = torch.nn.functional.normalize(torch.randn(6, 3), dim=1)
+    e = torch.randn(6, cfg.embedding)
+    dist, logits = model.decoder(e, e, x)
+    out = {}
+    total = train.direction_losses(
+        cfg, dist, logits, np.full(6, 0.5, np.float32), np.array([1, -1, 0, 1, -1, 0]), torch.full((6,), 1 / 6), "", out
+    )
+    total.backward()
+    grad = model.decoder.dist_head[-1].bias.grad
+    assert grad is not None and float(grad.abs().sum()) > 0
+
+
+def test_the_contradictory_policy_turns_at_the_boundary_or_half_way_and_stays_back():
+    h = np.array([1, 1, 1, -1])
+    boundary = np.array([False, True, False, False])
+    assert train.contradictory_heading(h, 0, 8, boundary).tolist() == [1, -1, 1, -1]
+    # After half the sequence (step 4 of 8) everything heads back.
+    assert train.contradictory_heading(h, 3, 8, np.zeros(4, bool)).tolist() == [-1, -1, -1, -1]
+    # Back stays back, even at a boundary.
+    assert train.contradictory_heading(np.array([-1]), 5, 8, np.array([True])).tolist() == [-1]

@@ -126,6 +126,14 @@ def choose_directions(model, variant, obs, wanted, eps, rng, candidates=64):
     return out, ranked
 
 
+def contradictory_heading(heading: np.ndarray, t: int, length: int, reached_boundary: np.ndarray) -> np.ndarray:
+    """The reference's contradictory policy after step `t` of a sequence of
+    `length`: +1 (away from the start) turns to -1 (back) at the joint's
+    boundary or after half the sequence, and stays -1."""
+    turn = (heading == 1) & ((t + 1 == length // 2) | reached_boundary)
+    return np.where(turn, -1, heading)
+
+
 def dense_directions(ranked: np.ndarray, k: int, rng) -> np.ndarray:
     """The K directions to probe at each state: the policy's best half of its
     candidates, and uniformly random ones for the rest."""
@@ -191,9 +199,8 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
                 )  # fmt: skip
                 stats["dense_labels"] += cfg.dense_labels
         if reference_rule:
-            turn = (heading == 1) & ((t + 1 == length // 2) | np.asarray(sinfo["reached_boundary"]))
             done |= (heading == -1) & np.asarray(sinfo["reached_init"])
-            heading[turn] = -1
+            heading = contradictory_heading(heading, t, length, np.asarray(sinfo["reached_boundary"]))
         stats["steps"] += int(record.sum())
     for i in range(len(env)):
         replay.add_position(first[i], pixels[i], int(valid[i] and moved_any[i]))

@@ -248,8 +248,8 @@ def test_gym_rewards_pay_the_oracle_and_not_random(env_id):
     random, _ = _gym_returns(env_id, "random")
     assert oracle > 1.0, oracle
     assert oracle > random + 1.0, (oracle, random)
-    if env_id == "umpnet/Goal-v0":
-        assert oracle_success >= 0.8
+    # The oracle reaches the goal, or (exploring) a joint limit, which ends the episode.
+    assert oracle_success >= (0.8 if env_id == "umpnet/Goal-v0" else 0.5), oracle_success
 
 
 def test_gym_budget_and_info():
