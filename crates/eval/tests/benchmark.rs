@@ -23,12 +23,12 @@ impl Policy for Broken {
     }
 }
 
-#[test]
-fn failed_episodes_are_reported_with_their_scene_and_the_run_goes_on() {
-    let cfg = BenchConfig {
-        task: Task::Goal,
-        categories: vec![Category::Door, Category::Laptop],
-        episodes_per_category: 2,
+/// A small CPU-rendered benchmark over all scenes.
+fn config(task: Task, categories: Vec<Category>, episodes_per_category: u32) -> BenchConfig {
+    BenchConfig {
+        task,
+        categories,
+        episodes_per_category,
         seed: 0,
         dataset_seed: 0,
         camera: Camera::reference(48, 64),
@@ -36,8 +36,13 @@ fn failed_episodes_are_reported_with_their_scene_and_the_run_goes_on() {
         steps: None,
         physics: Default::default(),
         protocol: Default::default(),
-        shard: Default::default(),
-    };
+        shard: Shard::ALL,
+    }
+}
+
+#[test]
+fn failed_episodes_are_reported_with_their_scene_and_the_run_goes_on() {
+    let cfg = config(Task::Goal, vec![Category::Door, Category::Laptop], 2);
     let broken: PolicyFactory = Arc::new(|| Ok(Box::new(Broken) as Box<dyn Policy>));
     let oracle: PolicyFactory =
         Arc::new(|| Ok(umpnet_eval::scripted_policy("oracle").expect("oracle exists")));
@@ -62,19 +67,8 @@ fn failed_episodes_are_reported_with_their_scene_and_the_run_goes_on() {
 
 #[test]
 fn shards_partition_the_scenes_in_canonical_order() {
-    let mut cfg = BenchConfig {
-        task: Task::Exploration,
-        categories: vec![Category::Door, Category::Laptop, Category::Microwave],
-        episodes_per_category: 5,
-        seed: 0,
-        dataset_seed: 0,
-        camera: Camera::reference(48, 64),
-        renderer: RendererKind::Cpu,
-        steps: None,
-        physics: Default::default(),
-        protocol: Default::default(),
-        shard: Shard::ALL,
-    };
+    let categories = vec![Category::Door, Category::Laptop, Category::Microwave];
+    let mut cfg = config(Task::Exploration, categories, 5);
     let all = cfg.scenes();
     assert_eq!(all.len(), 15);
     assert_eq!(all[0], (Category::Door, 0));

@@ -3,6 +3,7 @@
 //! merge of shards go through this same code from the same JSON, which is
 //! what makes a merged report byte-identical to an unsharded one.
 use anyhow::{Context, Result, bail};
+use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
 use umpnet_eval::Protocol;
@@ -75,7 +76,7 @@ impl Report {
             .iter()
             .enumerate()
             .map(|(i, e)| {
-                serde_json::from_value(e.clone())
+                Scored::deserialize(e)
                     .with_context(|| format!("episode {i}: not an episode outcome"))
             })
             .collect()

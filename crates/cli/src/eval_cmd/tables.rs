@@ -57,6 +57,14 @@ const SPLITS: [(&str, bool); 2] = [
     ("test categories", false),
 ];
 
+/// The categories of one split, in the evaluation's order.
+fn of_split(categories: &[Category], train: bool) -> Vec<&Category> {
+    categories
+        .iter()
+        .filter(|c| c.is_train() == train)
+        .collect()
+}
+
 fn split_name(c: Category) -> &'static str {
     if c.is_train() { "train" } else { "test" }
 }
@@ -83,10 +91,7 @@ pub fn screen(task: Task, policies: &[String], categories: &[Category], cells: &
     for (metric, title) in metrics_of(task) {
         let _ = writeln!(s, "\n{title}; below each row, +- the 95% interval");
         for (split_label, train) in SPLITS {
-            let cats: Vec<&Category> = categories
-                .iter()
-                .filter(|c| c.is_train() == train)
-                .collect();
+            let cats = of_split(categories, train);
             if cats.is_empty() {
                 continue;
             }
@@ -142,10 +147,7 @@ pub fn csv(task: Task, policies: &[String], categories: &[Category], cells: &Cel
     for p in policies {
         for (metric, _) in metrics_of(task) {
             for (_, train) in SPLITS {
-                let cats: Vec<&Category> = categories
-                    .iter()
-                    .filter(|c| c.is_train() == train)
-                    .collect();
+                let cats = of_split(categories, train);
                 let n: usize = cats
                     .iter()
                     .filter_map(|c| cells.get(&(p.clone(), **c, *metric)))
@@ -167,10 +169,7 @@ pub fn markdown(task: Task, policies: &[String], categories: &[Category], cells:
     let mut s = String::new();
     for (metric, title) in metrics_of(task) {
         for (split_label, train) in SPLITS {
-            let cats: Vec<&Category> = categories
-                .iter()
-                .filter(|c| c.is_train() == train)
-                .collect();
+            let cats = of_split(categories, train);
             if cats.is_empty() {
                 continue;
             }
@@ -219,10 +218,7 @@ pub fn latex(task: Task, policies: &[String], categories: &[Category], cells: &C
     let mut s = String::from("% umpnet eval: means over episodes; intervals in results.md/csv\n");
     for (metric, title) in metrics_of(task) {
         for (split_label, train) in SPLITS {
-            let cats: Vec<&Category> = categories
-                .iter()
-                .filter(|c| c.is_train() == train)
-                .collect();
+            let cats = of_split(categories, train);
             if cats.is_empty() {
                 continue;
             }
