@@ -5,7 +5,9 @@ import os
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
+from PIL import Image
 
 ROOT = Path(__file__).resolve().parents[1]
 UMPNET = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
@@ -156,6 +158,32 @@ def test_learned_policy_episode_and_infer(tmp_path):
                   "--intrinsics", f"{k['fx']},{k['fy']},{k['cx']},{k['cy']}", "--camera-pose", pose,
                   "--model", fixture, check=False)  # fmt: skip
         assert bad.returncode == 1 and name in bad.stderr and "panicked" not in bad.stderr, (name, bad.stderr)
+    # render's raw depth: float32 metres and 16-bit millimetres agree, and infer reads both
+    # (and float64), giving the same action.
+    depth_m = np.load(tmp_path / "depth.npy")
+    depth_mm = np.asarray(Image.open(tmp_path / "depth_mm.png"))
+    assert depth_m.dtype == np.float32 and depth_mm.dtype == np.uint16 and depth_m.shape == depth_mm.shape == (96, 128)
+    assert np.abs(depth_mm / 1000.0 - depth_m).max() < 6e-4 and (depth_m > 0).mean() > 0.5
+    np.save(tmp_path / "depth64.npy", depth_m.astype(np.float64))
+    Image.fromarray((depth_mm // 256).astype(np.uint8)).save(tmp_path / "depth8.png")
+    camera = ["--intrinsics", f"{k['fx']},{k['fy']},{k['cx']},{k['cy']}", "--model", fixture]
+
+    def infer(depth, *extra, pose=pose):
+        return run("--json", "infer", "--rgb", str(tmp_path / "color.png"), "--depth", str(tmp_path / depth),
+                   "--camera-pose", pose, *camera, *extra, check=False)  # fmt: skip
+
+    same = [json.loads(infer(d).stdout) for d in ("depth_mm.png", "depth64.npy")]
+    assert all(r["pixel"] == res["pixel"] for r in same), (same, res)
+    # Nonsense is refused by name, never clamped or ignored.
+    for args, pose_, needle in [
+        (("--grasp=99999,99999",), pose, "outside the 96x128 image"),
+        (("--grasp=5",), pose, "--grasp takes row,col"),
+        ((), ",".join(["0"] * 16), "not a rigid transform"),
+    ]:
+        bad = infer("depth.npy", *args, pose=pose_)
+        assert bad.returncode == 2 and needle in bad.stderr, (args, bad.stderr)
+    bad = infer("depth8.png")
+    assert bad.returncode == 2 and "depth8.png" in bad.stderr and "16-bit" in bad.stderr, bad.stderr
 
 
 BASELINES = ["single-step", "aot-only", "signed-dist", "where2act", "where2act-normal90", "inverse"]

@@ -175,7 +175,7 @@ fn print_axis_estimate(ep: &umpnet_eval::episode::Episode) -> Result<()> {
         JointEstimate::Prismatic { axis } => ("prismatic", axis),
         JointEstimate::Revolute { axis, .. } => ("revolute", axis),
     };
-    let true_kind = if model.joints[j].kind.is_prismatic() {
+    let true_kind = if model.joints.get(j).is_some_and(|jm| jm.kind.is_prismatic()) {
         "prismatic"
     } else {
         "revolute"
@@ -214,7 +214,7 @@ fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> 
                     Some(-1) => [230, 60, 200],
                     _ => [160, 160, 160],
                 };
-                let length = 0.2 * c.distance[k].max(0.0) / maxd;
+                let length = 0.2 * c.distance.get(k).copied().unwrap_or(0.0).max(0.0) / maxd;
                 images::draw_arrow(&mut img, f, from, Vec3::from(*d), length, color, 1);
             }
         }

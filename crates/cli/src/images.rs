@@ -24,11 +24,16 @@ fn colormap(t: f32) -> [u8; 3] {
     let x = t * (stops.len() - 1) as f32;
     let i = (x as usize).min(stops.len() - 2);
     let a = x - i as f32;
-    let mut out = [0u8; 3];
-    for k in 0..3 {
-        out[k] = (stops[i][k] * (1.0 - a) + stops[i + 1][k] * a) as u8;
+    match (stops.get(i), stops.get(i + 1)) {
+        (Some(s0), Some(s1)) => {
+            let mut out = [0u8; 3];
+            for ((o, x0), x1) in out.iter_mut().zip(s0).zip(s1) {
+                *o = (x0 * (1.0 - a) + x1 * a) as u8;
+            }
+            out
+        }
+        _ => [0, 0, 0],
     }
-    out
 }
 
 pub fn depth_image(f: &Frame) -> (RgbImage, f32, f32) {
@@ -39,7 +44,7 @@ pub fn depth_image(f: &Frame) -> (RgbImage, f32, f32) {
     let mut img = RgbImage::new(f.width + legend_w, f.height);
     for r in 0..f.height {
         for c in 0..f.width {
-            let d = f.depth[f.index(r, c)];
+            let d = f.depth.get(f.index(r, c)).copied().unwrap_or(0.0);
             let px = if d > 0.0 {
                 colormap((d - lo) / (hi - lo).max(1e-6))
             } else {
@@ -83,8 +88,8 @@ pub fn segmentation_image(f: &Frame) -> RgbImage {
 
 pub fn normal_image(f: &Frame) -> RgbImage {
     let mut img = RgbImage::new(f.width, f.height);
-    for (i, n) in f.normal_in_world.iter().enumerate() {
-        let px = if f.depth[i] > 0.0 {
+    for (i, (n, d)) in f.normal_in_world.iter().zip(&f.depth).enumerate() {
+        let px = if *d > 0.0 {
             n.map(|v| ((v * 0.5 + 0.5) * 255.0) as u8)
         } else {
             [0, 0, 0]

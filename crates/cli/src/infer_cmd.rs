@@ -39,87 +39,66 @@ pub struct InferArgs {
     pub seed: u64,
 }
 
+/// A 2-D depth array from a .npy file: float32 or float64 metres, or uint16
+/// units of `scale` metres.
 fn read_npy(path: &Path, scale: f32) -> Result<(usize, usize, Vec<f32>)> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
-        bail!("{}: not a .npy file", path.display());
-    }
-    // Version 1 has a 2-byte header length at 8; versions 2 and 3 a 4-byte one.
-    let (hlen, start): (usize, usize) = match (bytes[6], bytes.get(8..12)) {
-        (1, _) => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-        (2 | 3, Some(&[a, b, c, d])) => (u32::from_le_bytes([a, b, c, d]) as usize, 12),
-        (v, _) => bail!(
-            "{}: unsupported or truncated .npy header (version {v}); expected version 1, 2 or 3",
-            path.display()
-        ),
+    use ndarray::Array2;
+    use ndarray_npy::{ReadNpyError, ReadNpyExt};
+    let open = || {
+        std::fs::File::open(path)
+            .map(std::io::BufReader::new)
+            .with_context(|| format!("reading {}", path.display()))
     };
-    let Some(header_bytes) = start
-        .checked_add(hlen)
-        .and_then(|end| bytes.get(start..end))
-    else {
-        bail!(
-            "{}: truncated .npy file: the header says {hlen} bytes, the file has {}",
-            path.display(),
-            bytes.len().saturating_sub(start)
-        );
-    };
-    let header = String::from_utf8_lossy(header_bytes);
-    let shape_txt = header
-        .split("'shape':")
-        .nth(1)
-        .and_then(|s| s.split(')').next())
-        .unwrap_or("");
-    let dims: Vec<usize> = shape_txt
-        .trim_start_matches([' ', '('])
-        .split(',')
-        .filter_map(|t| t.trim().parse().ok())
-        .collect();
-    if dims.len() != 2 || header.contains("'fortran_order': True") {
-        bail!(
-            "{}: expected a 2-D C-order array, header {header}",
+    let bad = |e: ReadNpyError| {
+        anyhow::anyhow!(
+            "{}: not a readable 2-D .npy depth array (float32/float64 metres or uint16 scaled): {e}",
             path.display()
-        );
-    }
-    let data = &bytes[start + hlen..];
-    let values: Vec<f32> = if header.contains("<f4") {
-        data.chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect()
-    } else if header.contains("<u2") {
-        data.chunks_exact(2)
-            .map(|c| u16::from_le_bytes([c[0], c[1]]) as f32 * scale)
-            .collect()
-    } else {
-        bail!(
-            "{}: dtype must be <f4 (metres) or <u2 (scaled), header {header}",
-            path.display()
-        );
+        )
     };
-    if Some(values.len()) != dims[0].checked_mul(dims[1]) {
-        bail!(
-            "{}: {} values for shape {dims:?}",
-            path.display(),
-            values.len()
-        );
-    }
-    Ok((dims[0], dims[1], values))
+    // Each dtype in turn: a mismatch is reported as a wrong descriptor, and
+    // only then is the next one tried.
+    let wrong_type = |e: &ReadNpyError| matches!(e, ReadNpyError::WrongDescriptor(_));
+    let values: Array2<f32> = match Array2::<f32>::read_npy(open()?) {
+        Ok(a) => a,
+        Err(e) if wrong_type(&e) => match Array2::<f64>::read_npy(open()?) {
+            Ok(a) => a.mapv(|v| v as f32),
+            Err(e) if wrong_type(&e) => Array2::<u16>::read_npy(open()?)
+                .map_err(bad)?
+                .mapv(|v| v as f32 * scale),
+            Err(e) => return Err(bad(e)),
+        },
+        Err(e) => return Err(bad(e)),
+    };
+    let (h, w) = values.dim();
+    Ok((h, w, values.iter().copied().collect()))
 }
 
-fn load_frame(rgb: &Path, depth: &Path, a: &InferArgs) -> Result<OwnedFrame> {
+/// A depth image: only 16-bit grey holds depth; an 8-bit one would be
+/// rescaled by 257 without a word.
+fn read_depth_png(path: &Path, scale: f32) -> Result<(usize, usize, Vec<f32>)> {
+    let img = image::open(path).with_context(|| format!("reading {}", path.display()))?;
+    let image::DynamicImage::ImageLuma16(di) = img else {
+        return Err(usage(format!(
+            "{}: depth images must be 16-bit greyscale (units of --depth-scale metres), this one is {:?}",
+            path.display(),
+            img.color()
+        )));
+    };
+    Ok((
+        di.height() as usize,
+        di.width() as usize,
+        di.pixels().map(|p| p.0[0] as f32 * scale).collect(),
+    ))
+}
+
+fn load_frame(rgb: &Path, depth: &Path, a: &InferArgs, camera: &Camera) -> Result<OwnedFrame> {
     let img = image::open(rgb)
         .with_context(|| format!("reading {}", rgb.display()))?
         .to_rgb8();
     let (h, w, d) = if depth.extension().is_some_and(|e| e == "npy") {
         read_npy(depth, a.depth_scale)?
     } else {
-        let di = image::open(depth)
-            .with_context(|| format!("reading {}", depth.display()))?
-            .to_luma16();
-        (
-            di.height() as usize,
-            di.width() as usize,
-            di.pixels().map(|p| p.0[0] as f32 * a.depth_scale).collect(),
-        )
+        read_depth_png(depth, a.depth_scale)?
     };
     if (h, w) != (img.height() as usize, img.width() as usize) {
         return Err(usage(format!(
@@ -130,33 +109,80 @@ fn load_frame(rgb: &Path, depth: &Path, a: &InferArgs) -> Result<OwnedFrame> {
             depth.display()
         )));
     }
-    let p = &a.camera_pose;
     Ok(OwnedFrame {
         width: w,
         height: h,
         rgb: img.into_raw(),
         depth: d,
-        intrinsics: [
-            a.intrinsics[0],
-            a.intrinsics[1],
-            a.intrinsics[2],
-            a.intrinsics[3],
-        ],
-        world_from_camera: [
-            [p[0], p[1], p[2], p[3]],
-            [p[4], p[5], p[6], p[7]],
-            [p[8], p[9], p[10], p[11]],
-            [p[12], p[13], p[14], p[15]],
-        ],
+        intrinsics: camera.intrinsics,
+        world_from_camera: camera.world_from_camera,
     })
 }
 
-pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
-    if a.intrinsics.len() != 4 || a.camera_pose.len() != 16 {
-        return Err(usage(
-            "--intrinsics takes fx,fy,cx,cy and --camera-pose 16 numbers",
-        ));
+/// The checked camera flags.
+struct Camera {
+    intrinsics: [f32; 4],
+    world_from_camera: [[f32; 4]; 4],
+}
+
+impl Camera {
+    fn from_args(a: &InferArgs) -> Result<Camera> {
+        let (Ok(intrinsics), Ok(pose)) = (
+            <[f32; 4]>::try_from(a.intrinsics.as_slice()),
+            <[f32; 16]>::try_from(a.camera_pose.as_slice()),
+        ) else {
+            return Err(usage(
+                "--intrinsics takes fx,fy,cx,cy and --camera-pose 16 numbers",
+            ));
+        };
+        let [fx, fy, cx, cy] = intrinsics;
+        if !(fx.is_finite()
+            && fy.is_finite()
+            && fx > 0.0
+            && fy > 0.0
+            && cx.is_finite()
+            && cy.is_finite())
+        {
+            return Err(usage(format!(
+                "--intrinsics {intrinsics:?}: fx and fy must be positive and all four finite"
+            )));
+        }
+        let m = nalgebra::Matrix4::from_row_slice(&pose);
+        let r = m.fixed_view::<3, 3>(0, 0);
+        let rigid = pose.iter().all(|v| v.is_finite())
+            && (r.transpose() * r - nalgebra::Matrix3::identity())
+                .abs()
+                .max()
+                < 1e-3
+            && (r.determinant() - 1.0).abs() < 1e-3
+            && m.fixed_view::<1, 4>(3, 0) == nalgebra::RowVector4::new(0.0, 0.0, 0.0, 1.0);
+        if !rigid {
+            return Err(usage(format!(
+                "--camera-pose {pose:?} is not a rigid transform: expected a rotation (orthonormal, determinant 1), a translation, and a last row of 0,0,0,1"
+            )));
+        }
+        let mut world_from_camera = [[0.0f32; 4]; 4];
+        for (row, values) in world_from_camera.iter_mut().zip(pose.chunks_exact(4)) {
+            row.copy_from_slice(values);
+        }
+        Ok(Camera {
+            intrinsics,
+            world_from_camera,
+        })
     }
+}
+
+pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
+    let camera = Camera::from_args(a)?;
+    let grasp = match a.grasp.as_slice() {
+        [] => None,
+        &[r, c] => Some((r, c)),
+        other => {
+            return Err(usage(format!(
+                "--grasp takes row,col (two numbers), got {other:?}"
+            )));
+        }
+    };
     let model = match &a.model {
         Some(m) => m.clone(),
         None => crate::policies::default_model()?,
@@ -165,12 +191,20 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         .with_context(|| format!("loading {}", model.display()))?;
     let policy = UmpnetPolicy::new(std::sync::Arc::new(pkg));
     let (mh, mw) = policy.resolution();
-    let full = load_frame(&a.rgb, &a.depth, a)?;
+    let full = load_frame(&a.rgb, &a.depth, a, &camera)?;
+    if let Some((r, c)) = grasp
+        && (r >= full.height || c >= full.width)
+    {
+        return Err(usage(format!(
+            "--grasp {r},{c} is outside the {}x{} image",
+            full.height, full.width
+        )));
+    }
     let small = resize_nearest(&full.view(), mh, mw)?;
     let obs = build_observation(&small.view())?;
     let reference = match (&a.reference, &a.reference_depth) {
         (Some(r), Some(d)) => Some(build_observation(
-            &resize_nearest(&load_frame(r, d, a)?.view(), mh, mw)?.view(),
+            &resize_nearest(&load_frame(r, d, a, &camera)?.view(), mh, mw)?.view(),
         )?),
         (None, None) => None,
         _ => return Err(usage("--reference and --reference-depth go together")),
@@ -179,10 +213,10 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         full.height as f32 / mh as f32,
         full.width as f32 / mw as f32,
     );
-    let pixel_small = if a.grasp.len() == 2 {
+    let pixel_small = if let Some((r, c)) = grasp {
         (
-            ((a.grasp[0] as f32 + 0.5) / sy) as usize,
-            ((a.grasp[1] as f32 + 0.5) / sx) as usize,
+            (((r as f32 + 0.5) / sy) as usize).min(mh - 1),
+            (((c as f32 + 0.5) / sx) as usize).min(mw - 1),
         )
     } else {
         policy
@@ -203,24 +237,37 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         mode,
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
-    let r = policy
+    let Some(r) = policy
         .directions(std::slice::from_ref(&input), std::slice::from_mut(&mut rng))?
-        .remove(0);
+        .pop()
+    else {
+        bail!("{}: the policy returned no decision", model.display());
+    };
     let pixel_full = (
         ((pixel_small.0 as f32 + 0.5) * sy) as usize,
         ((pixel_small.1 as f32 + 0.5) * sx) as usize,
     );
     let point = CameraFrame::point_in_world(
         &full.view(),
-        pixel_full.0.min(full.height - 1),
-        pixel_full.1.min(full.width - 1),
+        pixel_full.0.min(full.height.saturating_sub(1)),
+        pixel_full.1.min(full.width.saturating_sub(1)),
     );
     let best = r.direction.and_then(|d| {
         r.candidates
             .iter()
             .position(|c| *c == d)
-            .map(|i| (d, r.scores[i]))
+            .and_then(|i| r.scores.get(i))
+            .map(|s| (d, *s))
     });
+    // A network that outputs NaN must not yield an action.
+    if r.scores.iter().any(|s| !s.distance.is_finite())
+        || best.is_some_and(|(d, _)| !d.iter().all(|v| v.is_finite()))
+    {
+        bail!(
+            "{}: the model's predictions are not finite numbers (NaN or infinity); no action",
+            model.display()
+        );
+    }
     let out = serde_json::json!({
         "pixel": [pixel_full.0, pixel_full.1],
         "point_in_world": point.map(|p| [p.x, p.y, p.z]),

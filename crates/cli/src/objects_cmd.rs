@@ -40,7 +40,7 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
             for c in &cats {
                 let v = write_dataset(out, &[*c], *per_category, *seed)
                     .with_context(|| format!("generating {c}"))?;
-                if let Some(m) = v["categories"].as_object() {
+                if let Some(m) = v.get("categories").and_then(|c| c.as_object()) {
                     split.extend(m.clone());
                 }
                 pb.inc(1);
@@ -87,15 +87,16 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
                     "category", "split", "steps"
                 );
                 for r in rows {
-                    let kinds: Vec<&str> = r["joints"]
-                        .as_array()
+                    let kinds: Vec<&str> = r
+                        .get("joints")
+                        .and_then(|j| j.as_array())
                         .map(|a| a.iter().filter_map(|v| v.as_str()).collect())
                         .unwrap_or_default();
                     println!(
                         "{:<18} {:<6} {:>5}  {}",
-                        r["category"].as_str().unwrap_or(""),
-                        r["split"].as_str().unwrap_or(""),
-                        r["steps"],
+                        r.get("category").and_then(|v| v.as_str()).unwrap_or(""),
+                        r.get("split").and_then(|v| v.as_str()).unwrap_or(""),
+                        r.get("steps").and_then(|v| v.as_u64()).unwrap_or(0),
                         kinds.join(", ")
                     );
                 }

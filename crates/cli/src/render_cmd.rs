@@ -40,12 +40,23 @@ pub fn run(ctx: &Ctx, a: &RenderArgs) -> Result<()> {
         &a.out.join("camera.json"),
         serde_json::to_string_pretty(&cam)?.as_bytes(),
     )?;
-    let depth_bytes: Vec<u8> = f.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
-    write_npy_f32(
-        &a.out.join("depth.npy"),
-        &[f.height as usize, f.width as usize],
-        &depth_bytes,
-    )?;
+    // Raw depth for `infer` and other tools: float32 metres (.npy) and
+    // millimetres in a 16-bit PNG (0 = no depth; farther than 65.535 m saturates).
+    let depth_m =
+        ndarray::Array2::from_shape_vec((f.height as usize, f.width as usize), f.depth.clone())
+            .context("depth buffer does not match the frame size")?;
+    let mut npy = Vec::new();
+    ndarray_npy::WriteNpyExt::write_npy(&depth_m, &mut npy).context("encoding depth.npy")?;
+    umpnet_sim::fsio::write_atomic(&a.out.join("depth.npy"), &npy)?;
+    let mm =
+        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(f.width, f.height, |c, r| {
+            let d = f.depth.get(f.index(r, c)).copied().unwrap_or(0.0);
+            image::Luma([(d * 1000.0).round().clamp(0.0, u16::MAX as f32) as u16])
+        });
+    let mut png = std::io::Cursor::new(Vec::new());
+    mm.write_to(&mut png, image::ImageFormat::Png)
+        .context("encoding depth_mm.png")?;
+    umpnet_sim::fsio::write_atomic(&a.out.join("depth_mm.png"), png.get_ref())?;
     if ctx.json {
         println!(
             "{}",
@@ -53,29 +64,10 @@ pub fn run(ctx: &Ctx, a: &RenderArgs) -> Result<()> {
         );
     } else {
         println!(
-            "wrote color.png depth.png ({lo:.2}-{hi:.2} m) segmentation.png normals.png depth.npy camera.json to {} ({})",
+            "wrote color.png depth.png ({lo:.2}-{hi:.2} m) segmentation.png normals.png depth.npy depth_mm.png camera.json to {} ({})",
             a.out.display(),
             env.renderer_name()
         );
     }
     Ok(())
-}
-
-/// Minimal .npy (v1.0) writer for little-endian f32 arrays.
-pub fn write_npy_f32(path: &std::path::Path, shape: &[usize], data: &[u8]) -> Result<()> {
-    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
-    let shape_s = if dims.len() == 1 {
-        format!("({},)", dims[0])
-    } else {
-        format!("({})", dims.join(", "))
-    };
-    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape_s}, }}");
-    let total = 10 + header.len() + 1;
-    header.push_str(&" ".repeat((64 - total % 64) % 64));
-    header.push('\n');
-    let mut out = b"\x93NUMPY\x01\x00".to_vec();
-    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    out.extend_from_slice(header.as_bytes());
-    out.extend_from_slice(data);
-    Ok(umpnet_sim::fsio::write_atomic(path, &out)?)
 }

@@ -1,6 +1,10 @@
 //! The paper's benchmark: per category, K fixed scenes (pure functions of
 //! seed, task, category and index), every policy on the same scenes, episodes
 //! in parallel with results independent of the thread count.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "joint indices come from the model the counts were sized for"
+)]
 use crate::episode::{Episode, EpisodeConfig, run_episode};
 use crate::policy::Policy;
 use crate::protocol::Protocol;

@@ -1,5 +1,9 @@
 //! The environment Python trains against: scenes sampled from a split,
 //! observations as tensors, scripted actions for exploration and baselines.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "joint and category indices come from the validated configuration and model"
+)]
 use crate::learned::{observation_tensor, project_pixel};
 use crate::policy::{Decision, Observation, Policy};
 use crate::scripted::{OraclePolicy, RandomPolicy};

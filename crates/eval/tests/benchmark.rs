@@ -1,4 +1,11 @@
 //! The benchmark engine: a failing episode is reported with its scene and the run goes on.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests and benchmarks fail by panicking"
+)]
 use std::sync::Arc;
 use umpnet_eval::bench::{BenchConfig, PolicyFactory, Shard, run_benchmark};
 use umpnet_eval::policy::{Decision, Observation, Policy, StepRecord};

@@ -1,5 +1,12 @@
 //! Normals estimated from depth (what a real camera allows) against the
 //! renderer's exact ones, on every category: the measurement behind the choice.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests and benchmarks fail by panicking"
+)]
 use rand::SeedableRng;
 use umpnet_eval::bench::benchmark_scene;
 use umpnet_eval::learned::observation_tensor;

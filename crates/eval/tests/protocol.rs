@@ -1,4 +1,11 @@
 //! Episodes under the paper's and the strict protocol, on the same scenes.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests and benchmarks fail by panicking"
+)]
 use umpnet_eval::Protocol;
 use umpnet_eval::bench::benchmark_scene;
 use umpnet_eval::episode::{EpisodeConfig, run_episode};

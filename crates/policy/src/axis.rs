@@ -1,6 +1,10 @@
 //! Joint-axis inference from the executed directions (paper, "Inferring
 //! objects' articulation structure"): prismatic = mean direction; revolute =
 //! the normal of the common action plane (L1 fit), positioned by voting.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "callers pass at least one direction and point (checked at entry)"
+)]
 use nalgebra::{Matrix3, Vector3};
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]

@@ -1,6 +1,10 @@
 //! The paper's direction sampler: 64 candidates on a Fibonacci sphere under a
 //! random rotation, scored; a second round resampled with probability
 //! proportional to exp(20 x score) plus noise, re-scored; then the pick.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "indices stay below the lengths of the candidate lists it built"
+)]
 use nalgebra::{Rotation3, Unit, Vector3};
 use rand::Rng;
 use rand_distr::StandardNormal;

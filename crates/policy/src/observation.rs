@@ -1,6 +1,10 @@
 //! The 10-channel observation built from what a real RGB-D camera gives:
 //! colour, depth, intrinsics and the camera pose. Channels: world xyz (3),
 //! rgb in [0, 1] (3), surface normal facing the camera (3), depth in metres (1).
+#![allow(
+    clippy::indexing_slicing,
+    reason = "the observation is built at the frame's own width and height"
+)]
 use crate::error::{PolicyError, Result};
 use nalgebra::Vector3;
 use ndarray::Array3;

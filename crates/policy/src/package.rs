@@ -387,7 +387,7 @@ impl ModelPackage {
             ndarray::concatenate![Axis(0), ae, ae],
         );
         let scores = self.decode(de2.view(), ae2.view(), dirs.view())?;
-        let name = self.decoder_outputs[0].as_str();
+        let name = self.decoder_outputs.first().map_or("", String::as_str);
         check(
             &files.direction_decoder,
             name,
@@ -408,7 +408,10 @@ impl ModelPackage {
                 return f(&mut s);
             }
         }
-        let mut s = self.pool[0]
+        let mut s = self
+            .pool
+            .first()
+            .ok_or_else(|| PolicyError::Runtime("no inference sessions".into()))?
             .lock()
             .map_err(|_| PolicyError::Runtime("session lock poisoned".into()))?;
         f(&mut s)
@@ -416,7 +419,8 @@ impl ModelPackage {
 
     fn check_obs(&self, what: &str, obs: &ArrayView4<f32>) -> Result<()> {
         let i = &self.meta.input;
-        if obs.shape()[1..] != [i.height, i.width, CHANNELS] {
+        let (_, h, w, c) = obs.dim();
+        if [h, w, c] != [i.height, i.width, CHANNELS] {
             return Err(PolicyError::Input(format!(
                 "{what} has shape {:?}, the model takes [batch, {}, {}, {CHANNELS}]",
                 obs.shape(),
@@ -439,7 +443,7 @@ impl ModelPackage {
                 .position
                 .run(ort::inputs!["observation" => input])
                 .map_err(|e| ort_err(&file, e))?;
-            let a = out["affordance"]
+            let a = output(&out, "affordance", &file)?
                 .try_extract_array::<f32>()
                 .map_err(|e| ort_err(&file, e))?;
             a.to_owned()
@@ -457,11 +461,11 @@ impl ModelPackage {
     ) -> Result<(Array2<f32>, Array2<f32>)> {
         self.check_obs("observation", &observation)?;
         self.check_obs("reference", &reference)?;
-        if pixel.shape() != [observation.shape()[0], 2] {
+        let batch = observation.len_of(Axis(0));
+        if pixel.shape() != [batch, 2] {
             return Err(PolicyError::Input(format!(
-                "pixel has shape {:?}, expected [{}, 2]",
+                "pixel has shape {:?}, expected [{batch}, 2]",
                 pixel.shape(),
-                observation.shape()[0]
             )));
         }
         self.with_sessions(|s| {
@@ -479,7 +483,7 @@ impl ModelPackage {
                 ])
                 .map_err(e)?;
             let get = |n: &str| -> Result<Array2<f32>> {
-                out[n]
+                output(&out, n, &file)?
                     .try_extract_array::<f32>()
                     .map_err(e)?
                     .to_owned()
@@ -503,7 +507,7 @@ impl ModelPackage {
                 self.dir.display()
             )));
         }
-        let n = direction.shape()[0];
+        let n = direction.nrows();
         let e = self.meta.embedding;
         if dist_embedding.shape() != [n, e]
             || aot_embedding.shape() != [n, e]
@@ -529,10 +533,10 @@ impl ModelPackage {
                 ])
                 .map_err(er)?;
             let get1 = |k: &str| -> Result<Array1<f32>> {
-                out[k].try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
+                output(&out, k, &file)?.try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
             };
             let get2 = |k: &str| -> Result<Array2<f32>> {
-                out[k].try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
+                output(&out, k, &file)?.try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
             };
             // Columns in the package's class order -> canonical (-1, 0, +1).
             let canonical = |p: Array2<f32>| -> Result<Array2<f32>> {
@@ -559,7 +563,9 @@ impl ModelPackage {
                     let mut p = Array2::<f32>::zeros((sd.len(), 3));
                     for (i, v) in sd.iter().enumerate() {
                         let k = if v.abs() <= 0.15 { 1 } else if *v > 0.0 { 2 } else { 0 };
-                        p[[i, k]] = 1.0;
+                        if let Some(x) = p.get_mut((i, k)) {
+                            *x = 1.0;
+                        }
                     }
                     DirectionScores { distance: sd.mapv(f32::abs), aot_probs: p }
                 }
@@ -572,7 +578,9 @@ impl ModelPackage {
                     let ps = get1("success_prob")?;
                     let mut p = Array2::<f32>::zeros((ps.len(), 3));
                     for (i, v) in ps.iter().enumerate() {
-                        p[[i, if *v >= 0.5 { 2 } else { 1 }]] = 1.0;
+                        if let Some(x) = p.get_mut((i, if *v >= 0.5 { 2 } else { 1 })) {
+                            *x = 1.0;
+                        }
                     }
                     DirectionScores { distance: ps, aot_probs: p }
                 }
@@ -593,7 +601,7 @@ impl ModelPackage {
                 self.meta.branches
             )));
         }
-        let n = dist_embedding.shape()[0];
+        let n = dist_embedding.nrows();
         let e = self.meta.embedding;
         if dist_embedding.shape() != [n, e] || aot_embedding.shape() != [n, e] {
             return Err(PolicyError::Input(format!(
@@ -613,7 +621,7 @@ impl ModelPackage {
                     "aot_embedding" => TensorRef::from_array_view(b.view().into_dyn()).map_err(er)?,
                 ])
                 .map_err(er)?;
-            out[self.decoder_outputs[0].as_str()]
+            output(&out, self.decoder_outputs.first().map_or("", String::as_str), &file)?
                 .try_extract_array::<f32>()
                 .map_err(er)?
                 .to_owned()
@@ -621,4 +629,15 @@ impl ModelPackage {
                 .map_err(|x| ort_err(&file, x))
         })
     }
+}
+
+/// A named output of a run, or an error naming the file: a package whose graph
+/// lacks it fails here instead of panicking in ort's indexing.
+fn output<'a>(
+    out: &'a ort::session::SessionOutputs<'_>,
+    name: &str,
+    file: &Path,
+) -> Result<&'a ort::value::DynValue> {
+    out.get(name)
+        .ok_or_else(|| pkg_err(file, format!("the graph has no output `{name}`")))
 }

@@ -1,5 +1,12 @@
 //! The runtime against Python onnxruntime on the fixture package made by
 //! `python -m umpnet_train.fixture DIR` (make test sets UMPNET_FIXTURE).
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests and benchmarks fail by panicking"
+)]
 use ndarray::{Array, ArrayD, IxDyn};
 use std::path::{Path, PathBuf};
 use umpnet_policy::ModelPackage;

@@ -2,6 +2,10 @@
 //! `umpnet.Articulation` (physics only, in physics.rs).
 //! Errors become ValueError (bad input) or RuntimeError (anything else);
 //! no Rust panic crosses into Python.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "every index follows a shape check of the array it indexes, which raises ValueError otherwise"
+)]
 use numpy::{
     PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArray4,
     PyUntypedArrayMethods,

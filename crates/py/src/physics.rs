@@ -1,5 +1,9 @@
 //! `umpnet.Articulation`: the physics of one object without camera or task,
 //! for scripted experiments and the differential suite against PyBullet.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "joint and link indices come from name lookups in the same model"
+)]
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;

@@ -1,5 +1,9 @@
 //! Dense labels for Python: `Env.probe_directions` and `VecEnv.probe_directions`
 //! simulate candidate directions from the current state without changing it.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "each function checks the array's shape before it indexes it"
+)]
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;

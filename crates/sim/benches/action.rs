@@ -1,6 +1,13 @@
 //! Physics time of one 0.18 m action (reference profile) on a generated
 //! drawer and a generated door: the figures `umpnet bench` reports, without
 //! the renderer and the episode around them.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests and benchmarks fail by panicking"
+)]
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::sync::Arc;
 use umpnet_sim::math::{Pose3, Vec3};

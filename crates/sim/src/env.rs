@@ -184,10 +184,11 @@ impl SimEnv {
     pub fn joint_moving_link(&self, link: usize) -> Option<usize> {
         let mut l = link;
         while let Some(j) = self.model.parent_joint_of(l) {
-            if self.model.joints[j].kind.is_movable() {
+            let joint = self.model.joints.get(j)?;
+            if joint.kind.is_movable() {
                 return Some(j);
             }
-            l = self.model.joints[j].parent;
+            l = joint.parent;
         }
         None
     }
@@ -204,7 +205,7 @@ impl SimEnv {
         let Segment::Link {
             object: OBJECT_ID,
             link,
-        } = Segment::decode(frame.segmentation[i])
+        } = Segment::decode(frame.segmentation.get(i).copied().unwrap_or_default())
         else {
             return Ok(Pick::NoMovableLink);
         };
@@ -215,7 +216,7 @@ impl SimEnv {
         };
         Ok(Pick::Movable {
             point_in_world: point,
-            normal_in_world: Vec3::from(frame.normal_in_world[i]),
+            normal_in_world: Vec3::from(frame.normal_in_world.get(i).copied().unwrap_or_default()),
             link,
             joint,
         })
@@ -302,8 +303,10 @@ fn act(
             "direction {direction} must be finite and non-zero"
         )));
     }
+    let jm = model.joints.get(g.joint).ok_or_else(|| {
+        SimError::InvalidAction(format!("grasped joint {} is not in the model", g.joint))
+    })?;
     let out = art.move_gripper(direction.normalize(), g.joint)?;
-    let jm = &model.joints[g.joint];
     Ok(labels(
         out.joint_before,
         out.joint_after,

@@ -196,7 +196,9 @@ impl TriMesh {
                 break;
             }
         }
-        let mtl = std::fs::read_to_string(path.with_file_name(library?)).ok()?;
+        // Only a file beside the OBJ: an object must not make the loader read elsewhere.
+        let library = library.filter(|l| !l.contains(['/', '\\']) && l != "..")?;
+        let mtl = std::fs::read_to_string(path.with_file_name(library)).ok()?;
         let material = material?;
         let mut current = false;
         for line in mtl.lines() {
@@ -285,9 +287,13 @@ impl TriMesh {
                     }
                 })
                 .collect::<Result<Vec<_>>>()?;
-            for k in 1..resolved.len() - 1 {
-                mesh.triangles
-                    .push([resolved[0], resolved[k], resolved[k + 1]]);
+            // A polygon as a fan around its first vertex.
+            if let Some((&first, rest)) = resolved.split_first() {
+                for pair in rest.windows(2) {
+                    if let [a, b] = *pair {
+                        mesh.triangles.push([first, a, b]);
+                    }
+                }
             }
         }
         if mesh.triangles.is_empty() {

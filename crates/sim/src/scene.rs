@@ -188,16 +188,20 @@ const FREE_PULL: f32 = 0.13;
 /// A joint's lever: the largest distance of its part's geometry from a hinge
 /// axis (1 for a slider, whose value is in metres already).
 fn joint_lever(model: &ObjectModel, joint: usize) -> f32 {
-    let jm = &model.joints[joint];
+    let Some(jm) = model.joints.get(joint) else {
+        return 1.0;
+    };
     if jm.kind.is_prismatic() {
         return 1.0;
     }
     let axis = jm.axis_in_joint;
     // The child's frame is the joint frame at value 0, so its vertices are
     // already in joint coordinates.
-    model.links[jm.child]
-        .visuals
-        .iter()
+    model
+        .links
+        .get(jm.child)
+        .into_iter()
+        .flat_map(|l| &l.visuals)
         .flat_map(|v| v.mesh_in_link.positions.iter())
         .map(|p| (*p - axis * p.dot(axis)).length())
         .fold(0.0, f32::max)
@@ -333,8 +337,15 @@ pub fn sample_scene(
                     model.source.display()
                 )));
             }
-            let j = candidates[rng.random_range(0..candidates.len())];
-            let jm = &model.joints[j];
+            let j = candidates
+                .get(rng.random_range(0..candidates.len()))
+                .copied()
+                .unwrap_or_default();
+            let Some(jm) = model.joints.get(j) else {
+                return Err(SimError::InvalidScene(format!(
+                    "joint {j} is not in the model"
+                )));
+            };
             let (lo, hi) = if jm.lower.is_finite() {
                 (jm.lower, jm.upper)
             } else {
@@ -354,9 +365,12 @@ pub fn sample_scene(
             } else {
                 (lo, lo + gap)
             };
-            joints[j] = init_v;
             let mut goal = joints.clone();
-            goal[j] = goal_v;
+            for (values, v) in [(&mut joints, init_v), (&mut goal, goal_v)] {
+                if let Some(slot) = values.get_mut(j) {
+                    *slot = v;
+                }
+            }
             Some(GoalSpec {
                 joint: j,
                 joints: goal,

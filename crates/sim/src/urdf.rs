@@ -138,6 +138,8 @@ pub const MAX_ATTRIBUTES: usize = 64;
 pub const MAX_LINKS: usize = 64;
 /// Longest number token (a numeric attribute's value is a few of these).
 const MAX_NUMBER_TOKEN: usize = 64;
+/// Largest coordinate (m) of any origin or vertex in a link's frame.
+pub const MAX_COORDINATE: f32 = 1000.0;
 /// Longest attribute value quoted back in an error message.
 const MAX_QUOTED: usize = 80;
 
@@ -217,14 +219,37 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
         .filter(|n| n.has_tag_name("link") && n.children().any(|c| c.has_tag_name("inertial")))
         .filter_map(|n| n.attribute("name").map(str::to_owned))
         .collect();
-    let joint_lines: HashMap<String, u32> = root
-        .children()
-        .filter(|n| n.has_tag_name("joint"))
-        .filter_map(|n| Some((n.attribute("name")?.to_owned(), line_of(n))))
-        .collect();
+    let mut joint_lines: HashMap<String, u32> = HashMap::new();
+    for n in root.children().filter(|n| n.has_tag_name("joint")) {
+        let name = n.attribute("name").unwrap_or_default();
+        if let Some(first) = joint_lines.insert(name.to_owned(), line_of(n)) {
+            return Err(urdf_err(
+                path,
+                format!(
+                    "line {}: a second joint named `{}` (the first is at line {first}); joint names must be unique",
+                    line_of(n),
+                    quoted(name)
+                ),
+            ));
+        }
+        // The URDF spec requires <limit> on revolute and prismatic joints; without
+        // one a reader's default locks the joint at 0 and nothing says why.
+        let limited = matches!(n.attribute("type"), Some("revolute" | "prismatic"));
+        if limited && !n.children().any(|c| c.has_tag_name("limit")) {
+            return Err(urdf_err(
+                path,
+                format!(
+                    "<joint name=\"{}\"> at line {}: a {} joint needs a <limit lower=.. upper=..> (the URDF spec requires one)",
+                    quoted(name),
+                    line_of(n),
+                    n.attribute("type").unwrap_or_default()
+                ),
+            ));
+        }
+    }
     let robot = urdf_rs::read_from_string(&mended)
         .map_err(|e| urdf_err(path, format!("invalid URDF: {e}")))?;
-    check_finite(&robot, path)?;
+    check_numbers(&robot, path)?;
     build_model(robot, path, &with_inertial, &joint_lines, meshes)
 }
 
@@ -234,17 +259,18 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
 /// quadratic. Malformed markup is left to the XML reader's message.
 fn check_xml_shape(text: &str, path: &Path) -> Result<()> {
     let b = text.as_bytes();
-    let line = |at: usize| 1 + b[..at].iter().filter(|c| **c == b'\n').count();
+    let line = |at: usize| 1 + b.iter().take(at).filter(|c| **c == b'\n').count();
     let after = |from: usize, end: &[u8]| -> usize {
-        b[from..]
+        b.get(from..)
+            .unwrap_or_default()
             .windows(end.len())
             .position(|w| w == end)
             .map_or(b.len(), |k| from + k + end.len())
     };
     let (mut i, mut depth) = (0usize, 0usize);
-    while let Some(off) = b[i..].iter().position(|c| *c == b'<') {
+    while let Some(off) = b.get(i..).and_then(|r| r.iter().position(|c| *c == b'<')) {
         let s = i + off;
-        let rest = &b[s..];
+        let rest = b.get(s..).unwrap_or_default();
         if rest.starts_with(b"<!--") {
             i = after(s, b"-->");
         } else if rest.starts_with(b"<![CDATA[") {
@@ -258,8 +284,8 @@ fn check_xml_shape(text: &str, path: &Path) -> Result<()> {
             i = after(s, b">");
         } else {
             let (mut k, mut quote, mut attributes) = (s + 1, None, 0usize);
-            while k < b.len() {
-                match (quote, b[k]) {
+            while let Some(&c) = b.get(k) {
+                match (quote, c) {
                     (Some(q), c) if c == q => quote = None,
                     (Some(_), _) => {}
                     (None, c @ (b'"' | b'\'')) => quote = Some(c),
@@ -304,17 +330,36 @@ fn quoted(value: &str) -> String {
     }
 }
 
-/// Every origin, inertia and geometry size must be a finite number: a NaN
-/// there passes the XML reader and poisons the physics silently (the joint
-/// comes back as NaN with exit 0).
-fn check_finite(robot: &urdf_rs::Robot, path: &Path) -> Result<()> {
+/// Every number the model keeps must be finite: a NaN passes the XML reader
+/// and poisons the physics silently (the joint comes back as NaN with exit 0).
+/// They are checked as the f32 the physics stores: `1e39` is finite in the
+/// file and infinite after conversion. Sizes, inertias and colours must also
+/// be in range: a negative inertia freezes a joint, a negative size or scale
+/// turns a mesh inside out.
+fn check_numbers(robot: &urdf_rs::Robot, path: &Path) -> Result<()> {
+    let finite = |v: f64| (v as f32).is_finite();
     let bad = |what: String, values: &[f64]| -> Result<()> {
-        if values.iter().all(|v| v.is_finite()) {
+        if values.iter().all(|v| finite(*v)) {
             Ok(())
         } else {
             Err(urdf_err(
                 path,
-                format!("{what} must be finite numbers, found {values:?}"),
+                format!("{what} must be finite numbers within f32 range, found {values:?}"),
+            ))
+        }
+    };
+    let at_least = |what: String, values: &[f64], min: f64, strict: bool| -> Result<()> {
+        bad(what.clone(), values)?;
+        if values
+            .iter()
+            .all(|v| if strict { *v > min } else { *v >= min })
+        {
+            Ok(())
+        } else {
+            let rel = if strict { ">" } else { ">=" };
+            Err(urdf_err(
+                path,
+                format!("{what} must be {rel} {min}, found {values:?}"),
             ))
         }
     };
@@ -324,6 +369,42 @@ fn check_finite(robot: &urdf_rs::Robot, path: &Path) -> Result<()> {
             &[o.xyz.0, o.rpy.0].concat(),
         )
     };
+    let geometry = |what: String, g: &urdf_rs::Geometry| -> Result<()> {
+        match g {
+            urdf_rs::Geometry::Box { size } => {
+                at_least(format!("{what} <box size>"), &size.0, 0.0, false)
+            }
+            urdf_rs::Geometry::Cylinder { radius, length }
+            | urdf_rs::Geometry::Capsule { radius, length } => at_least(
+                format!("{what} radius/length"),
+                &[*radius, *length],
+                0.0,
+                false,
+            ),
+            urdf_rs::Geometry::Sphere { radius } => {
+                at_least(format!("{what} <sphere radius>"), &[*radius], 0.0, false)
+            }
+            urdf_rs::Geometry::Mesh { scale, .. } => match scale {
+                Some(s) => at_least(format!("{what} <mesh scale>"), &s.0, 0.0, true),
+                None => Ok(()),
+            },
+        }
+    };
+    let color = |what: String, m: &Option<urdf_rs::Material>| -> Result<()> {
+        match m.as_ref().and_then(|m| m.color.as_ref()) {
+            Some(c) if !c.rgba.0.iter().all(|v| (0.0..=1.0).contains(v)) => Err(urdf_err(
+                path,
+                format!(
+                    "{what} <color rgba> must be 4 numbers in [0, 1], found {:?}",
+                    c.rgba.0
+                ),
+            )),
+            _ => Ok(()),
+        }
+    };
+    for m in &robot.materials {
+        color(format!("material `{}`", m.name), &Some(m.clone()))?;
+    }
     for l in &robot.links {
         let i = &l.inertial;
         origin(format!("link `{}` <inertial>", l.name), &i.origin)?;
@@ -332,17 +413,84 @@ fn check_finite(robot: &urdf_rs::Robot, path: &Path) -> Result<()> {
             format!("link `{}` <inertia>", l.name),
             &[t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz],
         )?;
+        at_least(
+            format!("link `{}` <inertia> ixx/iyy/izz", l.name),
+            &[t.ixx, t.iyy, t.izz],
+            0.0,
+            false,
+        )?;
+        // A body's inertia tensor has non-negative principal moments that obey the
+        // triangle inequality (i1 + i2 - i3 = 2 * integral of r3^2 dm >= 0); one
+        // that breaks either is no rigid body, and the solver turns it into NaN.
+        let moments = principal_moments([
+            [t.ixx, t.ixy, t.ixz],
+            [t.ixy, t.iyy, t.iyz],
+            [t.ixz, t.iyz, t.izz],
+        ]);
+        let [a, b, c] = moments;
+        let slack = 1e-6 * (a.abs() + b.abs() + c.abs());
+        if !moments.iter().all(|m| m.is_finite() && *m >= -slack)
+            || a + b < c - slack
+            || b + c < a - slack
+            || a + c < b - slack
+        {
+            return Err(urdf_err(
+                path,
+                format!(
+                    "link `{}` <inertia> has principal moments {moments:?}: they must be non-negative, each at most the sum of the other two, or no rigid body has them",
+                    l.name
+                ),
+            ));
+        }
         for v in &l.visual {
-            origin(format!("link `{}` <visual>", l.name), &v.origin)?;
+            let what = format!("link `{}` <visual>", l.name);
+            origin(what.clone(), &v.origin)?;
+            geometry(what.clone(), &v.geometry)?;
+            color(what, &v.material)?;
         }
         for c in &l.collision {
-            origin(format!("link `{}` <collision>", l.name), &c.origin)?;
+            let what = format!("link `{}` <collision>", l.name);
+            origin(what.clone(), &c.origin)?;
+            geometry(what, &c.geometry)?;
         }
     }
     for j in &robot.joints {
         origin(format!("joint `{}`", j.name), &j.origin)?;
+        let l = &j.limit;
+        bad(
+            format!("joint `{}` <limit> lower/upper", j.name),
+            &[l.lower, l.upper],
+        )?;
+        at_least(
+            format!("joint `{}` <limit> effort/velocity", j.name),
+            &[l.effort, l.velocity],
+            0.0,
+            false,
+        )?;
     }
     Ok(())
+}
+
+/// Eigenvalues of a symmetric 3x3 matrix (closed form, Smith 1961).
+fn principal_moments(m: [[f64; 3]; 3]) -> [f64; 3] {
+    let [[a, d, e], [_, b, f], [_, _, c]] = m;
+    let off = d * d + e * e + f * f;
+    if off == 0.0 {
+        return [a, b, c];
+    }
+    let q = (a + b + c) / 3.0;
+    let p = (((a - q).powi(2) + (b - q).powi(2) + (c - q).powi(2) + 2.0 * off) / 6.0).sqrt();
+    if !(p.is_finite() && p > 0.0) {
+        return [f64::NAN; 3];
+    }
+    let n = |x: f64| x / p;
+    let (a2, b2, c2, d2, e2, f2) = (n(a - q), n(b - q), n(c - q), n(d), n(e), n(f));
+    let det = a2 * (b2 * c2 - f2 * f2) - d2 * (d2 * c2 - f2 * e2) + e2 * (d2 * f2 - b2 * e2);
+    let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
+    let third = 2.0 * std::f64::consts::PI / 3.0;
+    let l1 = q + 2.0 * p * phi.cos();
+    let l3 = q + 2.0 * p * (phi + third).cos();
+    [l1, 3.0 * q - l1 - l3, l3]
 }
 
 /// Writes the element back out as XML, fixing what PartNet-Mobility files get
@@ -455,10 +603,15 @@ fn geometry_mesh(
         }
         urdf_rs::Geometry::Sphere { radius } => TriMesh::sphere(*radius as f32, 12, 24),
         urdf_rs::Geometry::Mesh { filename, scale } => {
-            let rel = filename
-                .trim_start_matches("package://")
-                .trim_start_matches("file://");
-            let mesh_path = base_dir.join(rel);
+            let mesh_path = mesh_path_in(base_dir, filename).ok_or_else(|| {
+                urdf_err(
+                    file,
+                    format!(
+                        "link `{link}`: mesh path `{}` leaves the object's folder; mesh paths must be relative and inside it",
+                        quoted(filename)
+                    ),
+                )
+            })?;
             let ext = mesh_path
                 .extension()
                 .and_then(|e| e.to_str())
@@ -501,10 +654,29 @@ fn mtl_color(g: &urdf_rs::Geometry, base_dir: &Path) -> Option<[f32; 3]> {
     let urdf_rs::Geometry::Mesh { filename, .. } = g else {
         return None;
     };
-    let rel = filename
-        .trim_start_matches("package://")
-        .trim_start_matches("file://");
-    TriMesh::obj_material_color(&base_dir.join(rel))
+    TriMesh::obj_material_color(&mesh_path_in(base_dir, filename)?)
+}
+
+/// Where a mesh reference points, or None when it would leave the object's
+/// folder (an absolute path, or `..` above it): an object file must not make
+/// the loader read arbitrary files.
+fn mesh_path_in(base_dir: &Path, filename: &str) -> Option<PathBuf> {
+    use std::path::Component;
+    let rel = Path::new(
+        filename
+            .trim_start_matches("package://")
+            .trim_start_matches("file://"),
+    );
+    let mut depth = 0usize;
+    for c in rel.components() {
+        match c {
+            Component::Normal(_) => depth += 1,
+            Component::CurDir => {}
+            Component::ParentDir => depth = depth.checked_sub(1)?,
+            Component::RootDir | Component::Prefix(_) => return None,
+        }
+    }
+    Some(base_dir.join(rel))
 }
 
 fn material_color(m: &Option<urdf_rs::Material>, named: &HashMap<String, [f32; 3]>) -> [f32; 3] {
@@ -654,8 +826,10 @@ fn build_model(
                 j.child.link
             )));
         }
-        let axis = Vec3::from(j.axis.xyz.0.map(|v| v as f32));
-        if kind.is_movable() && !(axis.is_finite() && axis.length() > 1e-6) {
+        // Normalised in f64: `1e30 0 0` is a valid direction whose f32 length overflows.
+        let norm = j.axis.xyz.0.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let axis = Vec3::from(j.axis.xyz.0.map(|v| (v / norm) as f32));
+        if kind.is_movable() && !(norm.is_finite() && norm > 1e-6 && axis.is_finite()) {
             return Err(jerr(format!(
                 "<axis xyz> must be a non-zero finite vector, found {:?}",
                 j.axis.xyz.0
@@ -695,11 +869,7 @@ fn build_model(
             parent,
             child,
             parent_from_joint: pose_of(&j.origin),
-            axis_in_joint: if kind.is_movable() {
-                axis.normalize()
-            } else {
-                Vec3::X
-            },
+            axis_in_joint: if kind.is_movable() { axis } else { Vec3::X },
             lower,
             upper,
             damping,
@@ -718,7 +888,10 @@ fn build_model(
             ));
         }
         many => {
-            let names: Vec<&str> = many.iter().map(|&i| links[i].name.as_str()).collect();
+            let names: Vec<&str> = many
+                .iter()
+                .filter_map(|&i| links.get(i).map(|l| l.name.as_str()))
+                .collect();
             return Err(urdf_err(
                 path,
                 format!(
@@ -729,22 +902,52 @@ fn build_model(
     };
     // Order joints root-first; a joint left unordered sits on a cycle detached from the root.
     let mut ordered = Vec::with_capacity(joints.len());
-    let mut reached = vec![false; links.len()];
-    reached[root] = true;
+    let mut reached: Vec<bool> = (0..links.len()).map(|l| l == root).collect();
     let mut frontier = vec![root];
     while let Some(l) = frontier.pop() {
         for j in joints.iter().filter(|j| j.parent == l) {
-            reached[j.child] = true;
+            if let Some(r) = reached.get_mut(j.child) {
+                *r = true;
+            }
             frontier.push(j.child);
             ordered.push(j.clone());
         }
     }
     if let Some(i) = reached.iter().position(|r| !r) {
+        let name = |i: usize| links.get(i).map_or("?", |l| l.name.as_str());
         return Err(urdf_err(
             path,
             format!(
                 "link `{}` is not connected to the root `{}`: kinematic loop",
-                links[i].name, links[root].name
+                name(i),
+                name(root)
+            ),
+        ));
+    }
+    // f32 physics resolves millimetres only within about a kilometre of the
+    // origin; farther, joint limits and contacts stop holding.
+    let far = |p: Vec3| p.abs().max_element() > MAX_COORDINATE;
+    for l in &links {
+        if far(l.com_in_link)
+            || l.visuals
+                .iter()
+                .any(|v| v.mesh_in_link.positions.iter().any(|p| far(*p)))
+        {
+            return Err(urdf_err(
+                path,
+                format!(
+                    "link `{}` reaches beyond {MAX_COORDINATE} m from its frame; objects must fit within that",
+                    l.name
+                ),
+            ));
+        }
+    }
+    if let Some(j) = joints.iter().find(|j| far(j.parent_from_joint.translation)) {
+        return Err(urdf_err(
+            path,
+            format!(
+                "joint `{}` <origin> is {:?}, beyond {MAX_COORDINATE} m; objects must fit within that",
+                j.name, j.parent_from_joint.translation
             ),
         ));
     }
@@ -760,6 +963,21 @@ fn build_model(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn principal_moments_are_the_eigenvalues() {
+        let mut m = principal_moments([[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 5.0]]);
+        m.sort_by(f64::total_cmp);
+        for (got, want) in m.iter().zip([1.0, 3.0, 5.0]) {
+            assert!((got - want).abs() < 1e-9, "{m:?}");
+        }
+        assert_eq!(
+            principal_moments([[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0]]),
+            [1.0, 2.0, 3.0]
+        );
+        let m = principal_moments([[0.2, 1e30, 0.0], [1e30, 0.3, 0.0], [0.0, 0.0, 0.1]]);
+        assert!(m.iter().any(|v| *v < 0.0), "{m:?}");
+    }
 
     fn wrap(body: &str) -> String {
         format!("<?xml version=\"1.0\"?><robot name=\"t\">{body}</robot>")

@@ -1,4 +1,11 @@
 //! Physics of the action primitive on generated objects of every category.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests and benchmarks fail by panicking"
+)]
 use rand::{Rng, SeedableRng};
 use std::sync::Arc;
 use umpnet_sim::env::{DELTA, labels};

@@ -1,5 +1,12 @@
 //! Dense labels: probing directions from a state leaves the episode as it was
 //! and gives what executing them gives.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests and benchmarks fail by panicking"
+)]
 use rand::SeedableRng;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::{Pick, SimEnv};

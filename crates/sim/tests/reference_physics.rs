@@ -1,5 +1,12 @@
 //! The `reference` profile's behaviours that the paper's simulator shows (the
 //! differential suite in tests/reference compares them with PyBullet itself).
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests and benchmarks fail by panicking"
+)]
 use std::sync::Arc;
 use umpnet_sim::math::{Pose3, Vec3};
 use umpnet_sim::physics::{Articulation, PhysicsConfig, PhysicsProfile};

@@ -1,4 +1,11 @@
 //! The wgpu rasteriser against the independent CPU ray caster, on every category.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests and benchmarks fail by panicking"
+)]
 use rand::SeedableRng;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::SimEnv;

@@ -162,11 +162,15 @@ fn sort_canonically(report: &mut Report) -> Result<()> {
         keyed.push(((c, o.index, p), value));
     }
     keyed.sort_by_key(|(k, _)| *k);
-    if let Some(w) = keyed.windows(2).find(|w| w[0].0 == w[1].0) {
-        let (c, k, p) = w[0].0;
+    let twice = keyed.windows(2).find_map(|w| match w {
+        [a, b] if a.0 == b.0 => Some(a.0),
+        _ => None,
+    });
+    if let Some((c, k, p)) = twice {
         return Err(usage(format!(
             "episode {} #{k} of policy `{}` appears in more than one shard",
-            run.categories[c], run.policies[p]
+            run.categories.get(c).map_or("?", |c| c.name()),
+            run.policies.get(p).map_or("?", String::as_str)
         )));
     }
     let expected = run.categories.len() * run.episodes_per_category as usize * run.policies.len();

@@ -99,7 +99,7 @@ pub fn plot_curves(
             RGBColor(255, 127, 14),
         ];
         for (k, (name, c)) in curves.iter().enumerate() {
-            let color = palette[k % palette.len()];
+            let color = palette.get(k % palette.len()).copied().unwrap_or(BLACK);
             chart
                 .draw_series(LineSeries::new(
                     c.iter().enumerate().map(|(t, v)| ((t + 1) as f64, *v)),

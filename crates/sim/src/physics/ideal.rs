@@ -1,6 +1,10 @@
 //! The `ideal` profile: the articulated object as a rapier3d multibody, a
 //! suction gripper on a stiff drive that follows the commanded line as far as
 //! the joint's path allows (the ideal projection onto that path). No contacts.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "body and joint handles are indexed by the validated model's own indices"
+)]
 use super::{ActionOutcome, PhysicsConfig};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3, rotation_x_to};
@@ -50,7 +54,22 @@ impl IdealArticulation {
         world_from_link[model.root] = world_from_base;
         let mprops = |l: usize| {
             let link = &model.links[l];
-            MassProperties::with_inertia_matrix(link.com_in_link, link.mass, link.inertia_in_link)
+            let m = MassProperties::with_inertia_matrix(
+                link.com_in_link,
+                link.mass,
+                link.inertia_in_link,
+            );
+            // A principal moment near zero (a thin rod's, 1e-30) inverts to a
+            // number the solver overflows into NaN; a floor a millionth of the
+            // largest moment changes no real object's motion.
+            let principal = m.principal_inertia();
+            let floor = (principal.max_element() * 1e-6).max(1e-12);
+            MassProperties::with_principal_inertia_frame(
+                m.local_com,
+                link.mass,
+                principal.max(Vec3::splat(floor)),
+                m.principal_inertia_local_frame,
+            )
         };
         link_bodies[model.root] = bodies.insert(
             RigidBodyBuilder::fixed()

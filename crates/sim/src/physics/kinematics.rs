@@ -1,5 +1,9 @@
 //! Kinematics of an [`ObjectModel`] tree in reduced coordinates: link poses
 //! from joint values, the movable joints above a link, the links a joint moves.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "joint and link indices come from the validated model"
+)]
 use crate::math::{Pose3, Quat};
 use crate::urdf::{JointKind, ObjectModel};
 

@@ -12,6 +12,10 @@
 //!
 //! No contacts in either (the reference protocol): only articulated dynamics,
 //! joint limits, the suction joint and the gripper drive.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "joint and link indices come from the validated model this module was built from"
+)]
 mod ideal;
 mod kinematics;
 mod pgs;
@@ -170,12 +174,24 @@ impl Articulation {
                 reference::ReferenceArticulation::new(model.clone(), world_from_base, &config),
             )),
         };
-        Self {
+        let mut art = Self {
             model,
             config,
             world_from_base,
             backend,
+        };
+        // Joints start at 0, as a URDF's zero pose; where the limits exclude 0
+        // they start at the nearer limit, as the physics would push them there.
+        if art
+            .model
+            .joints
+            .iter()
+            .any(|j| j.kind.is_movable() && !(j.lower <= 0.0 && 0.0 <= j.upper))
+        {
+            let zeros = vec![0.0; art.model.joints.len()];
+            dispatch!(mut art, b => b.set_joint_positions(&zeros));
         }
+        art
     }
 
     pub fn model(&self) -> &Arc<ObjectModel> {

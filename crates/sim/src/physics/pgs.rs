@@ -2,6 +2,10 @@
 //! Bullet's multibody solver runs it: from a cold start, a fixed number of
 //! sweeps that alternate backward and forward. The reference profile depends
 //! on that exact schedule (see reference.rs), not only on its fixed point.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "the solver's matrices and vectors are sized by itself"
+)]
 
 /// Velocities a row can touch: the chain's joints and the mount's three axes.
 pub(crate) const MAX_DOFS: usize = 8;

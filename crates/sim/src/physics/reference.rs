@@ -24,6 +24,10 @@
 //! still. One update may cover several reference steps (`steps_per_update`):
 //! gains and bounds are rescaled so a free pull follows the same exponential
 //! approach.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "vectors are sized from the validated model's joints and links"
+)]
 use super::kinematics::{forward_kinematics, joint_motion, movable_chain, moved_links};
 use super::pgs::{MAX_DOFS, Row, invert, solve};
 use super::{ActionOutcome, PhysicsConfig};

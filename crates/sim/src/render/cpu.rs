@@ -1,6 +1,10 @@
 //! Pure-CPU renderer: one ray per pixel centre against a BVH (parry3d) of the
 //! scene's triangles in world frame. Independent of the rasteriser, so tests
 //! use it as a reference; also the fallback when no GPU adapter exists.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "pixel and triangle indices are bounded by the buffers this renderer allocated"
+)]
 use super::{Frame, RenderMesh, Renderer, SEG_BACKGROUND, shade};
 use crate::camera::Camera;
 use crate::error::{Result, SimError};

@@ -1,6 +1,10 @@
 //! The wgpu rasteriser. One device per process (creating one costs far more
 //! than a frame), used by one thread at a time: parallel lavapipe devices were
 //! seen to corrupt memory under load.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "buffers are sized from the frame and mesh sizes this renderer allocated"
+)]
 use super::{Frame, RenderMesh, Renderer};
 use crate::camera::Camera;
 use crate::error::{Result, SimError};
@@ -242,7 +246,10 @@ impl GpuRenderer {
                 data_buf: buf(16),
             });
         }
-        self.targets.as_ref().expect("targets were just created")
+        match &self.targets {
+            Some(t) => t,
+            None => unreachable!("the branch above creates the targets"),
+        }
     }
 }
 

@@ -1,6 +1,10 @@
 //! Offscreen RGB-D + segmentation + normal rendering: a wgpu rasteriser and a
 //! CPU ray caster with the same output. Meshes are loaded once per scene;
 //! a frame only moves part transforms.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "pixel indices are bounded by the frame's own width and height"
+)]
 mod cpu;
 mod gpu;
 
