@@ -26,12 +26,12 @@ fixture: install
 # The main job on the shipped defaults: the learned policy (models/umpnet-small)
 # with pictures, then the benchmark against oracle and random, then speed figures.
 demo: build
-	$(UMPNET) objects generate --out data/objects --per-category 20
+	$(UMPNET) objects generate --out data/objects --per-category 20 --force
 	$(UMPNET) explore --category Microwave --seed 3 --policy umpnet --out out/explore-umpnet
 	$(UMPNET) goal --category Door --seed 2 --policy umpnet --out out/goal-umpnet
 	$(UMPNET) explore --category StorageFurniture --seed 1 --policy oracle --out out/explore-oracle
-	$(UMPNET) eval --task exploration --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-exploration
-	$(UMPNET) eval --task goal --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-goal
+	$(UMPNET) eval --task exploration --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-exploration --force
+	$(UMPNET) eval --task goal --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-goal --force
 	$(UMPNET) bench --frames 20 --actions 100
 	@echo "pictures, tables and plots in out/"
 
@@ -41,8 +41,8 @@ B := models/baselines
 EXPLORE_POLICIES := umpnet,single-step=$(B)/single-step,aot-only=$(B)/aot-only,signed-dist=$(B)/signed-dist,where2act=$(B)/where2act,where2act-normal90=$(B)/where2act-normal90,random,oracle
 EPISODES ?= 50
 eval-baselines: build
-	$(UMPNET) eval --task exploration --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES) --out out/baselines-exploration
-	$(UMPNET) eval --task goal --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --out out/baselines-goal
+	$(UMPNET) eval --task exploration --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES) --out out/baselines-exploration --force
+	$(UMPNET) eval --task goal --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --out out/baselines-goal --force
 
 lint: install
 	cargo fmt --all --check

@@ -99,6 +99,43 @@ def test_objects_generate_layout_and_split(tmp_path):
     # A generated file loads back through --object.
     out = json.loads(run("--json", "explore", "--object", str(urdf), "--steps", "3").stdout)
     assert len(out["steps"]) == 3
+    # --object takes the file: a folder or a FIFO is named for what it is.
+    p = run("explore", "--object", str(urdf.parent), check=False)
+    assert p.returncode == 2 and "is a directory" in p.stderr and "mobility.urdf" in p.stderr, p.stderr
+    fifo = tmp_path / "fifo.urdf"
+    os.mkfifo(fifo)
+    p = run("explore", "--object", str(fifo), check=False)
+    assert p.returncode == 2 and "not a regular file" in p.stderr, p.stderr
+
+
+def test_output_folders_are_claimed_never_overwritten_silently(tmp_path):
+    gen = ["objects", "generate", "--per-category", "1", "--categories", "Door", "--out"]
+    run(*gen, str(tmp_path / "objs"))
+    before = (tmp_path / "objs" / "split.json").read_bytes()
+    p = run(*gen, str(tmp_path / "objs"), "--seed", "1", check=False)
+    assert p.returncode == 2 and "already holds" in p.stderr and "--force" in p.stderr, p.stderr
+    assert (tmp_path / "objs" / "split.json").read_bytes() == before
+    run(*gen, str(tmp_path / "objs"), "--seed", "1", "--force")
+    assert json.loads((tmp_path / "objs" / "split.json").read_text())["dataset_seed"] == 1
+    ev = ["eval", "--categories", "Door", "--episodes-per-category", "1", "--policies", "random", "--out"]
+    run(*ev, str(tmp_path / "ev"))
+    first = (tmp_path / "ev" / "results.json").read_bytes()
+    p = run(*ev, str(tmp_path / "ev"), "--seed", "9", check=False)
+    assert p.returncode == 2 and "already holds" in p.stderr and "results.json" in p.stderr, p.stderr
+    assert (tmp_path / "ev" / "results.json").read_bytes() == first
+    run(*ev, str(tmp_path / "ev"), "--seed", "9", "--force")
+    assert (tmp_path / "ev" / "results.json").read_bytes() != first
+    assert not (tmp_path / "ev" / ".umpnet.lock").exists()
+    # A folder another run holds is refused, even with --force, and left alone.
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / ".umpnet.lock").write_text("")
+    p = run(*ev, str(tmp_path / "busy"), "--force", check=False)
+    assert p.returncode == 2 and "another umpnet run is writing here" in p.stderr, p.stderr
+    assert (tmp_path / "busy" / ".umpnet.lock").exists() and not (tmp_path / "busy" / "results.json").exists()
+    # A folder that cannot be made says so and names it.
+    (tmp_path / "file").write_text("x")
+    p = run(*gen, str(tmp_path / "file" / "objs"), check=False)
+    assert p.returncode == 1 and "file/objs: cannot create" in p.stderr, p.stderr
 
 
 @pytest.mark.parametrize(

@@ -5,6 +5,7 @@ mod eval_cmd;
 mod images;
 mod infer_cmd;
 mod objects_cmd;
+mod outdir;
 mod policies;
 mod render_cmd;
 
@@ -144,8 +145,20 @@ impl ObjectArgs {
     pub fn scene(&self, task: Task) -> Result<Scene> {
         let (object, category) = match (&self.object, self.category) {
             (Some(path), c) => {
-                if !path.is_file() {
-                    return Err(usage(format!("--object {}: no such file", path.display())));
+                let what = match std::fs::metadata(path) {
+                    Err(_) => Some("no such file".to_owned()),
+                    Ok(m) if m.is_dir() => Some(format!(
+                        "is a directory; expected a URDF file such as {}",
+                        path.join("mobility.urdf").display()
+                    )),
+                    Ok(m) if !m.is_file() => Some(
+                        "is not a regular file (a FIFO or device?); expected a URDF file"
+                            .to_owned(),
+                    ),
+                    Ok(_) => None,
+                };
+                if let Some(what) = what {
+                    return Err(usage(format!("--object {}: {what}", path.display())));
                 }
                 (ObjectSource::File { path: path.clone() }, c)
             }

@@ -16,6 +16,9 @@ pub enum ObjectsCmd {
         /// Comma-separated categories (default: all 22).
         #[arg(long, value_delimiter = ',', value_parser = crate::parse_category)]
         categories: Vec<Category>,
+        /// Write into a folder that is not empty (files of the same instances are replaced).
+        #[arg(long)]
+        force: bool,
     },
     /// List the categories with their split, step budget and joint types.
     List,
@@ -28,7 +31,9 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
             per_category,
             seed,
             categories,
+            force,
         } => {
+            let _claim = crate::outdir::claim(out, *force, &[])?;
             let cats = if categories.is_empty() {
                 Category::ALL.to_vec()
             } else {

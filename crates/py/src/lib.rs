@@ -6,10 +6,8 @@
     clippy::indexing_slicing,
     reason = "every index follows a shape check of the array it indexes, which raises ValueError otherwise"
 )]
-use numpy::{
-    PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArray4,
-    PyUntypedArrayMethods,
-};
+use arrays::{Arr2, Arr3, Arr4};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray3, PyReadonlyArray4, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -351,8 +349,9 @@ impl Env {
     fn probe_directions<'py>(
         &self,
         py: Python<'py>,
-        directions: PyReadonlyArray2<'py, f32>,
+        directions: Arr2<'py, f32>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let directions = directions.0;
         let dirs = vec![probe::directions_2d(&directions)?];
         let k = dirs[0].len();
         let labels = probe::probe_all(py, std::slice::from_ref(&self.inner), &dirs)?;
@@ -529,8 +528,9 @@ impl VecEnv {
     fn step_position<'py>(
         &mut self,
         py: Python<'py>,
-        pixels: PyReadonlyArray2<'py, i64>,
+        pixels: Arr2<'py, i64>,
     ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+        let pixels = pixels.0;
         let n = self.envs.len();
         if pixels.shape() != [n, 2] {
             return Err(PyValueError::new_err(format!(
@@ -589,8 +589,9 @@ impl VecEnv {
     fn step_direction<'py>(
         &mut self,
         py: Python<'py>,
-        directions: PyReadonlyArray2<'py, f32>,
+        directions: Arr2<'py, f32>,
     ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+        let directions = directions.0;
         let n = self.envs.len();
         if directions.shape() != [n, 3] {
             return Err(PyValueError::new_err(format!(
@@ -695,8 +696,9 @@ impl VecEnv {
     fn probe_directions<'py>(
         &self,
         py: Python<'py>,
-        directions: numpy::PyReadonlyArray3<'py, f32>,
+        directions: Arr3<'py, f32>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let directions = directions.0;
         let dirs = probe::directions(&directions, self.envs.len())?;
         let k = directions.shape()[1];
         let labels = probe::probe_all(py, &self.envs, &dirs)?;
@@ -751,11 +753,12 @@ impl Policy {
     #[pyo3(signature = (image, goal=None))]
     fn position(
         &self,
-        image: PyReadonlyArray3<'_, f32>,
-        goal: Option<PyReadonlyArray3<'_, f32>>,
+        image: Arr3<'_, f32>,
+        goal: Option<Arr3<'_, f32>>,
     ) -> PyResult<(usize, usize)> {
+        let image = image.0;
         let img = to_array3(&image)?;
-        let g = goal.as_ref().map(to_array3).transpose()?;
+        let g = goal.as_ref().map(|g| to_array3(g)).transpose()?;
         let c = self
             .inner
             .position(img.view(), g.as_ref().map(|g| g.view()))
@@ -769,11 +772,14 @@ impl Policy {
     fn direction_batch<'py>(
         &mut self,
         py: Python<'py>,
-        images: PyReadonlyArray4<'py, f32>,
-        references: PyReadonlyArray4<'py, f32>,
-        pixels: PyReadonlyArray2<'py, i64>,
+        images: Arr4<'py, f32>,
+        references: Arr4<'py, f32>,
+        pixels: Arr2<'py, i64>,
         mode: &str,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let images = images.0;
+        let references = references.0;
+        let pixels = pixels.0;
         use rand::SeedableRng;
         let mode = match mode {
             "explore" | "exploration" => Mode::Explore,
@@ -857,6 +863,7 @@ fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
         .unwrap_or_else(|_| ndarray::Array3::zeros((s[1], s[2], s[3])))
 }
 
+mod arrays;
 mod physics;
 mod probe;
 

@@ -344,3 +344,16 @@ def test_policy_position_rejects_a_goal_of_another_shape():
     with pytest.raises(ValueError, match="goal observation has shape"):
         pol.position(image, np.zeros((h // 2, w, 10), np.float32))
     assert len(pol.position(image, image.copy())) == 2
+
+
+def test_wrong_array_dtypes_name_what_was_expected():
+    pol = umpnet.Policy(str(Path(__file__).resolve().parents[3] / "models" / "umpnet-small"))
+    h, w = pol.resolution
+    with pytest.raises(TypeError, match=r"argument 'image'.*float32 array with 3 dimensions.*got a float64 array"):
+        pol.position(np.zeros((h, w, 10)), None)
+    with pytest.raises(TypeError, match=r"float32 array with 3 dimensions.*got a float32 array of shape \[4, 4\]"):
+        pol.position(np.zeros((4, 4), np.float32), None)
+    envs = umpnet.VecEnv(2, resolution=RES)
+    envs.reset()
+    with pytest.raises(TypeError, match=r"argument 'pixels'.*int64 array with 2 dimensions.*got a list"):
+        envs.step_position([[1, 2], [3, 4]])

@@ -9,6 +9,12 @@ pub enum SimError {
         #[source]
         source: std::io::Error,
     },
+    #[error("{file}: cannot write: {source}")]
+    Write {
+        file: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("{file}: {what}")]
     Urdf { file: PathBuf, what: String },
     #[error("{file}:{line}: {what}")]

@@ -17,7 +17,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         std::process::id(),
         COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
-    let io = |file: &Path, source: std::io::Error| SimError::Io {
+    let io = |file: &Path, source: std::io::Error| SimError::Write {
         file: file.to_path_buf(),
         source,
     };

@@ -212,6 +212,25 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
         ));
     }
     let line_of = |n: roxmltree::Node| doc.text_pos_at(n.range().start).row;
+    // urdf-rs answers a <geometry> without a shape with a two-line reader dump.
+    const SHAPES: &[&str] = &["box", "cylinder", "capsule", "sphere", "mesh"];
+    for g in root.descendants().filter(|n| n.has_tag_name("geometry")) {
+        let shapes = g.children().filter(|c| c.is_element()).count();
+        if shapes != 1
+            || !g
+                .children()
+                .filter(|c| c.is_element())
+                .all(|c| SHAPES.contains(&c.tag_name().name()))
+        {
+            return Err(urdf_err(
+                path,
+                format!(
+                    "<geometry> at line {} must hold exactly one of <box>, <cylinder>, <capsule>, <sphere>, <mesh>",
+                    line_of(g)
+                ),
+            ));
+        }
+    }
     let mut mended = String::with_capacity(text.len() + 256);
     mend(root, path, &line_of, &mut mended)?;
     let with_inertial: HashSet<String> = root
@@ -840,12 +859,12 @@ fn build_model(
                 let (lo, hi) = (j.limit.lower, j.limit.upper);
                 if !lo.is_finite() || !hi.is_finite() {
                     return Err(jerr(format!(
-                        "<limit> lower/upper must be finite numbers, found lower={lo} upper={hi}"
+                        "<limit> lower/upper must be finite numbers, found lower={lo:?} upper={hi:?}"
                     )));
                 }
                 if lo > hi {
                     return Err(jerr(format!(
-                        "<limit> lower ({lo}) is greater than upper ({hi})"
+                        "<limit> lower ({lo:?}) is greater than upper ({hi:?})"
                     )));
                 }
                 (lo as f32, hi as f32)
@@ -1064,7 +1083,7 @@ mod tests {
         let e = err_of(&format!(
             r#"{BASE}<joint name="j" type="prismatic"><parent link="base"/><child link="door"/><axis xyz="1 0 0"/><limit lower="2" upper="1"/></joint>"#
         ));
-        assert!(e.contains("lower (2) is greater than upper (1)"), "{e}");
+        assert!(e.contains("lower (2.0) is greater than upper (1.0)"), "{e}");
         let e = err_of(&format!(
             r#"{BASE}<joint name="a" type="fixed"><parent link="base"/><child link="door"/></joint>
                <joint name="b" type="fixed"><parent link="door"/><child link="base"/></joint>"#

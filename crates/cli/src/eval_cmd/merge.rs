@@ -18,6 +18,9 @@ pub struct MergeArgs {
     /// Write results.csv, results.json, table.txt and curve.png here.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Replace the results a previous run left in --out.
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(serde::Deserialize)]
@@ -135,6 +138,11 @@ pub fn run(ctx: &Ctx, a: &MergeArgs) -> Result<()> {
     };
     sort_canonically(&mut report)?;
     let scenes = report.run.categories.len() * report.run.episodes_per_category as usize;
+    let _claim = a
+        .out
+        .as_deref()
+        .map(|dir| crate::outdir::claim(dir, a.force, Report::FILES))
+        .transpose()?;
     super::finish(ctx, &report, a.out.as_deref(), scenes)
 }
 

@@ -75,6 +75,9 @@ pub struct EvalArgs {
     /// Write results.csv, results.json, table.txt and curve.png here (a shard: results.json).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Replace the results a previous run left in --out.
+    #[arg(long)]
+    pub force: bool,
 }
 
 fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
@@ -174,6 +177,12 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         protocol: a.protocol,
         shard,
     };
+    // Claimed before the long run, so a conflict is known at once.
+    let _claim = a
+        .out
+        .as_deref()
+        .map(|dir| crate::outdir::claim(dir, a.force, Report::FILES))
+        .transpose()?;
     let scenes = cfg.scenes().len();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))

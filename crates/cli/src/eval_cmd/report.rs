@@ -136,6 +136,16 @@ impl Report {
         )
     }
 
+    /// Every file [`Report::write`] may write: what `--out` must not already hold.
+    pub const FILES: &'static [&'static str] = &[
+        "results.json",
+        "results.csv",
+        "results.md",
+        "results.tex",
+        "table.txt",
+        "curve.png",
+    ];
+
     /// results.json always; a whole evaluation also gets results.csv,
     /// results.md, results.tex, table.txt and curve.png (a shard's share of the tables would mislead).
     /// Each file is written beside and renamed, so a crash never leaves a

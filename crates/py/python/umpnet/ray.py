@@ -71,6 +71,7 @@ def parse_args(argv: list[str] | None = None) -> tuple[argparse.Namespace, list[
     p.add_argument("--retries", type=int, default=1, help="retries of a failed shard before it is reported")
     p.add_argument("--umpnet-bin", default=None, help="the umpnet binary on every machine")
     p.add_argument("--out", type=Path, default=None, help="the merged report, with the shards in OUT/shards")
+    p.add_argument("--force", action="store_true", help="replace the report a previous run left in --out")
     p.add_argument("--json", action="store_true", help="print the merged summary as JSON")
     args, rest = p.parse_known_args(argv)
     for flag in ("--shard", "--threads"):
@@ -138,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         dirs.append(str(d))
     merge = [umpnet_bin, *(["--json"] if args.json else []), "eval", "merge", *dirs]
     if out:
-        merge += ["--out", str(out)]
+        merge += ["--out", str(out), *(["--force"] if args.force else [])]
     return subprocess.run(merge, check=False).returncode
 
 

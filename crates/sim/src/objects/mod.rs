@@ -185,7 +185,7 @@ impl GeneratedObject {
     pub fn write(&self, root: &Path) -> Result<PathBuf> {
         let urdf = self.urdf_path(root);
         let dir = urdf.parent().unwrap_or(root).to_path_buf();
-        let io = |file: &Path, e: std::io::Error| SimError::Io {
+        let io = |file: &Path, e: std::io::Error| SimError::Write {
             file: file.to_path_buf(),
             source: e,
         };
