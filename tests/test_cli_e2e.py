@@ -146,6 +146,7 @@ def test_output_folders_are_claimed_never_overwritten_silently(tmp_path):
         (["eval", "--split", "nope"], 2, "--split nope"),
         (["render", "--category", "Door", "--resolution", "12", "--out", "/tmp/x"], 2, "HEIGHTxWIDTH"),
         (["explore", "--object", "/nonexistent/mobility.urdf"], 2, "no such file"),
+        (["eval", "--threads", "5000"], 2, "5000 is not in 1..=1024"),
     ],
 )
 def test_bad_usage_exits_2_with_one_line(args, code, needle):

@@ -312,15 +312,12 @@ impl Env {
         row: i64,
         col: i64,
     ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
-        if row < 0 || col < 0 {
+        let (Ok(r), Ok(c)) = (u32::try_from(row), u32::try_from(col)) else {
             return Err(PyValueError::new_err(format!(
-                "pixel ({row}, {col}) must be non-negative"
+                "pixel ({row}, {col}) must be non-negative and inside the image"
             )));
-        }
-        let (obs, info) = self
-            .inner
-            .step_position(row as u32, col as u32)
-            .map_err(eval_err)?;
+        };
+        let (obs, info) = self.inner.step_position(r, c).map_err(eval_err)?;
         Ok((
             obs_dict(py, &obs, self.inner.reference())?,
             position_info(py, &info)?,
@@ -538,16 +535,23 @@ impl VecEnv {
                 pixels.shape()
             )));
         }
-        let p: Vec<i64> = pixels.as_array().iter().copied().collect();
-        if p.iter().any(|&v| v < 0) {
-            return Err(PyValueError::new_err("pixels must be non-negative"));
-        }
+        // Checked, not cast: 2**32 + r must not wrap round to r.
+        let Ok(p) = pixels
+            .as_array()
+            .iter()
+            .map(|&v| u32::try_from(v))
+            .collect::<Result<Vec<u32>, _>>()
+        else {
+            return Err(PyValueError::new_err(
+                "pixels must be non-negative and inside the image",
+            ));
+        };
         let envs = &mut self.envs;
         let out = py
             .detach(|| {
                 envs.par_iter_mut()
                     .enumerate()
-                    .map(|(i, e)| e.step_position(p[2 * i] as u32, p[2 * i + 1] as u32))
+                    .map(|(i, e)| e.step_position(p[2 * i], p[2 * i + 1]))
                     .collect::<Result<Vec<_>, _>>()
             })
             .map_err(eval_err)?;

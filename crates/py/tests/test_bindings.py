@@ -118,6 +118,13 @@ def test_errors_are_python_exceptions():
         e2 = umpnet.Env(seed=1, resolution=RES)
         e2.reset()
         e2.step_position(100, 5)
+    # Indices are checked, not cast: 2**32 + 5 must not wrap round to pixel 5.
+    with pytest.raises(ValueError, match="inside the image"):
+        e2.step_position(2**32 + 5, 5)
+    vec = umpnet.VecEnv(2, resolution=RES)
+    vec.reset()
+    with pytest.raises(ValueError, match="inside the image"):
+        vec.step_position(np.array([[2**32 + 5, 5], [1, 1]], np.int64))
     vec = umpnet.VecEnv(2, resolution=RES)
     vec.reset()
     with pytest.raises(ValueError, match=r"expected \(2, 2\)"):

@@ -66,8 +66,8 @@ pub struct EvalArgs {
     #[arg(long, default_value = "paper", value_parser = crate::parse_protocol)]
     pub protocol: Protocol,
     /// Worker threads (default: all cores). Results do not depend on it.
-    #[arg(long)]
-    pub threads: Option<usize>,
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub threads: Option<u16>,
     /// Run only shard K of N (1-based, e.g. 2/4): every N-th scene, starting
     /// at the K-th. `umpnet eval merge` joins the shards' --out directories.
     #[arg(long, value_parser = parse_shard)]
@@ -148,7 +148,10 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     if a.episodes_per_category == 0 {
         return Err(usage("--episodes-per-category must be at least 1"));
     }
-    let threads = a.threads.unwrap_or_else(rayon::current_num_threads).max(1);
+    let threads = a
+        .threads
+        .map_or_else(rayon::current_num_threads, usize::from)
+        .max(1);
     // The oracle is the ceiling of every table, under the same protocol and physics.
     let mut listed = a.policies.clone();
     if !listed.iter().any(|p| p == "oracle") {
@@ -185,7 +188,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         .transpose()?;
     let scenes = cfg.scenes().len();
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads.unwrap_or(0))
+        .num_threads(a.threads.map_or(0, usize::from))
         .build()?;
     let pb = ctx.progress(scenes as u64, "scenes");
     let t0 = std::time::Instant::now();
