@@ -60,6 +60,8 @@ test-python: build py fixture
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_ray.py
 	# The differential suite: the `reference` physics against PyBullet.
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/reference
+	# umpnet's wgpu and PyBullet's EGL renderer in one process (its own: EGL state is per process).
+	$(PY) -m pytest -q tests/test_egl_coexistence.py
 	$(PY) -m pytest -q crates/py/tests
 	UMPNET_BIN=$(UMPNET) PYTHONPATH=train_py $(PY) -m pytest -q train_py/tests
 

@@ -154,7 +154,8 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
     eps_pos = epsilon(cfg.position_epsilon, cfg.position_start_epoch, cfg.position_decay_epochs, epoch)
     eps_dir = epsilon(cfg.direction_epsilon, cfg.direction_start_epoch, cfg.direction_decay_epochs, epoch)
     pixels = choose_positions(model, obs, eps_pos, rng)
-    first = obs["image"]
+    # The environment's observation buffers are rewritten by every step: keep copies.
+    first = obs["image"].copy()
     t0 = time.perf_counter()
     obs, info = env.step_position(pixels)
     stats["sim_s"] += time.perf_counter() - t0
@@ -175,7 +176,7 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
         else:
             wanted = np.full(len(env), 1 if t < (length + 1) // 2 else -1)
         dirs, ranked = choose_directions(model, cfg.variant, obs, wanted, eps_dir, rng)
-        before = obs
+        before = {"image": obs["image"].copy(), "gripper_pixel": obs["gripper_pixel"].copy()}
         if dense is not None:
             t0 = time.perf_counter()
             probe_dirs = dense_directions(ranked, cfg.dense_labels, rng)

@@ -4,7 +4,7 @@
     clippy::indexing_slicing,
     reason = "joint and category indices come from the validated configuration and model"
 )]
-use crate::learned::{observation_tensor, project_pixel};
+use crate::learned::{camera_frame, observation_tensor, project_pixel};
 use crate::policy::{Decision, Observation, Policy};
 use crate::scripted::{OraclePolicy, RandomPolicy};
 use crate::{EvalError, Result};
@@ -12,6 +12,7 @@ use ndarray::Array3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::path::PathBuf;
+use umpnet_policy::build_observation_into;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::{Pick, SimEnv, StepLabels};
 use umpnet_sim::math::Vec3;
@@ -64,6 +65,15 @@ pub struct EnvObservation {
     pub intrinsics: [f32; 4],
     pub world_from_camera: [[f32; 4]; 4],
     /// Where the gripper is in the image (row, col), once it holds something.
+    pub gripper_pixel: Option<(usize, usize)>,
+}
+
+/// The small parts of an observation, beside the image and segmentation a
+/// caller had written into its own buffers ([`TrainEnv::observe_into`]).
+#[derive(Clone, Copy, Debug)]
+pub struct ObsMeta {
+    pub intrinsics: [f32; 4],
+    pub world_from_camera: [[f32; 4]; 4],
     pub gripper_pixel: Option<(usize, usize)>,
 }
 
@@ -157,14 +167,12 @@ impl TrainEnv {
         )
     }
 
-    fn observe(&self, frame: &Frame) -> Result<EnvObservation> {
+    fn meta(&self, frame: &Frame) -> Result<ObsMeta> {
         let env = self
             .env
             .as_ref()
             .ok_or_else(|| EvalError::Episode("reset() first".into()))?;
-        Ok(EnvObservation {
-            image: observation_tensor(frame)?,
-            segmentation: frame.segmentation.clone(),
+        Ok(ObsMeta {
             intrinsics: [
                 frame.intrinsics.fx,
                 frame.intrinsics.fy,
@@ -183,8 +191,70 @@ impl TrainEnv {
         })
     }
 
+    fn observe(&self, frame: &Frame) -> Result<EnvObservation> {
+        let meta = self.meta(frame)?;
+        Ok(EnvObservation {
+            image: observation_tensor(frame)?,
+            segmentation: frame.segmentation.clone(),
+            intrinsics: meta.intrinsics,
+            world_from_camera: meta.world_from_camera,
+            gripper_pixel: meta.gripper_pixel,
+        })
+    }
+
+    fn current_frame(&self) -> Result<&Frame> {
+        self.frame
+            .as_ref()
+            .ok_or_else(|| EvalError::Episode("reset() first".into()))
+    }
+
+    /// The current observation written into the caller's buffers: `image`
+    /// (H x W x 10, row-major) and `segmentation` (H x W). Every element is
+    /// overwritten; nothing is allocated per call. The same values as
+    /// [`TrainEnv::reset_observation`], bit for bit.
+    pub fn observe_into(&self, image: &mut [f32], segmentation: &mut [i64]) -> Result<ObsMeta> {
+        let frame = self.current_frame()?;
+        if segmentation.len() != frame.segmentation.len() {
+            return Err(EvalError::Episode(format!(
+                "segmentation buffer has {} values, the frame {}",
+                segmentation.len(),
+                frame.segmentation.len()
+            )));
+        }
+        build_observation_into(&camera_frame(frame), image)?;
+        for (out, s) in segmentation.iter_mut().zip(&frame.segmentation) {
+            *out = i64::from(*s);
+        }
+        self.meta(frame)
+    }
+
+    /// The reference observation (see [`TrainEnv::reference`]) written into `out`.
+    pub fn reference_into(&self, out: &mut [f32]) -> Result<()> {
+        let r = self
+            .reference
+            .as_ref()
+            .ok_or_else(|| EvalError::Episode("reset() first".into()))?;
+        match r.as_slice() {
+            Some(values) if values.len() == out.len() => {
+                out.copy_from_slice(values);
+                Ok(())
+            }
+            _ => Err(EvalError::Episode(format!(
+                "reference buffer has {} values, the observation {}",
+                out.len(),
+                r.len()
+            ))),
+        }
+    }
+
     /// Starts an episode on `scene`, or on a newly sampled one.
     pub fn reset(&mut self, scene: Option<Scene>) -> Result<EnvObservation> {
+        self.reset_in_place(scene)?;
+        self.reset_observation()
+    }
+
+    /// [`TrainEnv::reset`] without building the observation (see [`TrainEnv::observe_into`]).
+    pub fn reset_in_place(&mut self, scene: Option<Scene>) -> Result<()> {
         let scene = match scene {
             Some(s) => s,
             None => self.sample_scene()?,
@@ -215,9 +285,8 @@ impl TrainEnv {
         self.reference_frame = Some(reference_frame);
         self.oracle.reset(0);
         self.history.clear();
-        let obs = self.observe(&frame)?;
         self.frame = Some(frame);
-        Ok(obs)
+        Ok(())
     }
 
     pub fn scene(&self) -> Option<&Scene> {
@@ -242,14 +311,16 @@ impl TrainEnv {
 
     /// The current observation, without acting.
     pub fn reset_observation(&self) -> Result<EnvObservation> {
-        let frame = self
-            .frame
-            .as_ref()
-            .ok_or_else(|| EvalError::Episode("reset() first".into()))?;
-        self.observe(frame)
+        self.observe(self.current_frame()?)
     }
 
     pub fn step_position(&mut self, row: u32, col: u32) -> Result<(EnvObservation, PositionInfo)> {
+        let info = self.step_position_in_place(row, col)?;
+        Ok((self.reset_observation()?, info))
+    }
+
+    /// [`TrainEnv::step_position`] without building the observation.
+    pub fn step_position_in_place(&mut self, row: u32, col: u32) -> Result<PositionInfo> {
         let (env, frame) = match (self.env.as_mut(), self.frame.as_ref()) {
             (Some(e), Some(f)) => (e, f),
             _ => return Err(EvalError::Episode("step_position before reset()".into())),
@@ -279,10 +350,8 @@ impl TrainEnv {
             }
             Pick::NoMovableLink => PositionInfo::default(),
         };
-        let frame = env.render()?;
-        let obs = self.observe(&frame)?;
-        self.frame = Some(frame);
-        Ok((obs, info))
+        self.frame = Some(env.render()?);
+        Ok(info)
     }
 
     /// Dense labels of `directions` from the current state, which stays as it
@@ -300,6 +369,12 @@ impl TrainEnv {
     }
 
     pub fn step_direction(&mut self, direction: [f32; 3]) -> Result<(EnvObservation, StepLabels)> {
+        let labels = self.step_direction_in_place(direction)?;
+        Ok((self.reset_observation()?, labels))
+    }
+
+    /// [`TrainEnv::step_direction`] without building the observation.
+    pub fn step_direction_in_place(&mut self, direction: [f32; 3]) -> Result<StepLabels> {
         let env = self
             .env
             .as_mut()
@@ -309,10 +384,8 @@ impl TrainEnv {
             direction: Vec3::from(direction).normalize().to_array(),
             labels: labels.clone(),
         });
-        let frame = env.render()?;
-        let obs = self.observe(&frame)?;
-        self.frame = Some(frame);
-        Ok((obs, labels))
+        self.frame = Some(env.render()?);
+        Ok(labels)
     }
 
     /// What `oracle` or `random` would do now (a pixel before the grasp, a direction after).

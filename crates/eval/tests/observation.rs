@@ -112,3 +112,64 @@ fn observation_channels_are_the_frames_world_points_colours_and_depth() {
         "{coloured} of {checked} pixels with |R - B| > 20"
     );
 }
+
+/// The zero-copy path (`observe_into`, what the Python environments use)
+/// writes the same observation as the allocating one, bit for bit, through a
+/// goal episode: reset, grasp, moves; and the reference it writes is the one
+/// `reference()` holds.
+#[test]
+fn observe_into_equals_the_allocating_observation_bit_for_bit() {
+    use umpnet_eval::train_env::{EnvConfig, ScriptedAction, TrainEnv};
+    use umpnet_sim::objects::InstanceSplit;
+    use umpnet_sim::render::RendererKind;
+    let mut cfg = EnvConfig::new(Task::Goal, InstanceSplit::Train);
+    cfg.resolution = (48, 64);
+    cfg.renderer = RendererKind::Cpu;
+    let mut env = TrainEnv::new(cfg, 3).unwrap();
+    let (h, w) = (48usize, 64usize);
+    // Poisoned buffers: every value must be overwritten.
+    let mut image = vec![f32::NAN; h * w * 10];
+    let mut seg = vec![-7i64; h * w];
+    let mut reference = vec![f32::NAN; h * w * 10];
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let mut compared = 0;
+    for episode in 0..2 {
+        env.reset_in_place(None).unwrap();
+        env.reference_into(&mut reference).unwrap();
+        let held = env.reference().unwrap();
+        assert_eq!(
+            bits(&reference),
+            bits(held.as_slice().unwrap()),
+            "episode {episode}"
+        );
+        for step in 0..6 {
+            let meta = env.observe_into(&mut image, &mut seg).unwrap();
+            let fresh = env.reset_observation().unwrap();
+            assert_eq!(
+                bits(&image),
+                bits(fresh.image.as_slice().unwrap()),
+                "step {step}"
+            );
+            let fresh_seg: Vec<i64> = fresh.segmentation.iter().map(|&s| i64::from(s)).collect();
+            assert_eq!(seg, fresh_seg);
+            assert_eq!(meta.intrinsics, fresh.intrinsics);
+            assert_eq!(meta.world_from_camera, fresh.world_from_camera);
+            assert_eq!(meta.gripper_pixel, fresh.gripper_pixel);
+            compared += 1;
+            match env.scripted_action("oracle").unwrap() {
+                ScriptedAction::Pixel(r, c) => {
+                    env.step_position_in_place(r, c).unwrap();
+                }
+                ScriptedAction::Direction(d) => {
+                    env.step_direction_in_place(d).unwrap();
+                }
+                ScriptedAction::Stop => break,
+            }
+        }
+    }
+    assert!(compared >= 6, "{compared} observations compared");
+    // Buffers of the wrong size are errors, not panics.
+    assert!(env.observe_into(&mut image[1..], &mut seg).is_err());
+    assert!(env.observe_into(&mut image, &mut seg[1..]).is_err());
+    assert!(env.reference_into(&mut reference[1..]).is_err());
+}

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 use umpnet_eval::EvalError;
-use umpnet_eval::train_env::{EnvConfig, EnvObservation, PositionInfo, ScriptedAction, TrainEnv};
+use umpnet_eval::train_env::{EnvConfig, PositionInfo, ScriptedAction, TrainEnv};
 use umpnet_policy::cem::Mode;
 use umpnet_policy::{DecisionInput, ModelPackage, UmpnetPolicy};
 use umpnet_sim::env::StepLabels;
@@ -50,12 +50,6 @@ pub(crate) fn eval_err(e: EvalError) -> PyErr {
         EvalError::Policy(p) => policy_err(p),
         other => runtime_err(other),
     }
-}
-
-fn array<'py>(py: Python<'py>, data: Vec<f32>, shape: &[usize]) -> PyResult<Bound<'py, PyAny>> {
-    Ok(PyArray1::from_vec(py, data)
-        .reshape(shape.to_vec())?
-        .into_any())
 }
 
 /// `category=` takes one name or a list of names.
@@ -142,49 +136,6 @@ fn make_config(
     Ok(cfg)
 }
 
-fn obs_dict<'py>(
-    py: Python<'py>,
-    o: &EnvObservation,
-    reference: Option<&ndarray::Array3<f32>>,
-) -> PyResult<Bound<'py, PyDict>> {
-    let (h, w, c) = o.image.dim();
-    let d = PyDict::new(py);
-    d.set_item(
-        "image",
-        array(py, o.image.iter().copied().collect(), &[h, w, c])?,
-    )?;
-    if let Some(r) = reference {
-        d.set_item(
-            "reference",
-            array(py, r.iter().copied().collect(), &[h, w, c])?,
-        )?;
-    }
-    let seg: Vec<i64> = o.segmentation.iter().map(|&s| s as i64).collect();
-    d.set_item(
-        "segmentation",
-        PyArray1::from_vec(py, seg).reshape(vec![h, w])?,
-    )?;
-    let [fx, fy, cx, cy] = o.intrinsics;
-    d.set_item(
-        "intrinsics",
-        array(py, vec![fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0], &[3, 3])?,
-    )?;
-    d.set_item(
-        "world_from_camera",
-        array(
-            py,
-            o.world_from_camera.iter().flatten().copied().collect(),
-            &[4, 4],
-        )?,
-    )?;
-    let gp: Vec<i64> = o
-        .gripper_pixel
-        .map(|(r, c)| vec![r as i64, c as i64])
-        .unwrap_or_else(|| vec![-1, -1]);
-    d.set_item("gripper_pixel", PyArray1::from_vec(py, gp))?;
-    Ok(d)
-}
-
 fn labels_dict<'py>(py: Python<'py>, l: &StepLabels) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("r_dist", l.r_dist)?;
@@ -248,17 +199,24 @@ fn parse_direction(v: Vec<f32>) -> PyResult<[f32; 3]> {
 /// actions (unit vectors in the world frame). Observations are dicts of numpy
 /// arrays: `image` and `reference` (H x W x 10 float32: xyz, rgb, normal,
 /// depth), `segmentation`, `intrinsics`, `world_from_camera`, `gripper_pixel`.
+///
+/// The arrays are the environment's own buffers, rewritten in place by every
+/// step (the zero-copy path, see buffers.rs): copy what you keep past the
+/// next step, or pass `copy=True` for fresh arrays each time.
 #[pyclass(module = "umpnet")]
 struct Env {
     inner: TrainEnv,
+    buffers: buffers::ObsBuffers,
+    copy: bool,
 }
 
 #[pymethods]
 impl Env {
     #[new]
-    #[pyo3(signature = (category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference"))]
+    #[pyo3(signature = (category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", copy=false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
+        py: Python<'_>,
         category: Option<Categories>,
         split: &str,
         seed: u64,
@@ -268,6 +226,7 @@ impl Env {
         renderer: &str,
         dataset_seed: u64,
         physics: &str,
+        copy: bool,
     ) -> PyResult<Self> {
         let cfg = make_config(
             category,
@@ -279,8 +238,11 @@ impl Env {
             dataset_seed,
             physics,
         )?;
+        let (h, w) = (resolution.0 as usize, resolution.1 as usize);
         Ok(Self {
             inner: TrainEnv::new(cfg, seed).map_err(eval_err)?,
+            buffers: buffers::ObsBuffers::new(py, None, h, w)?,
+            copy,
         })
     }
 
@@ -291,8 +253,9 @@ impl Env {
             .map(Scene::from_json)
             .transpose()
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let obs = self.inner.reset(scene).map_err(eval_err)?;
-        obs_dict(py, &obs, self.inner.reference())
+        self.inner.reset_in_place(scene).map_err(eval_err)?;
+        self.buffers
+            .fill(py, std::slice::from_mut(&mut self.inner), true, self.copy)
     }
 
     /// The scene as JSON; `reset(scene=...)` replays it exactly.
@@ -317,11 +280,11 @@ impl Env {
                 "pixel ({row}, {col}) must be non-negative and inside the image"
             )));
         };
-        let (obs, info) = self.inner.step_position(r, c).map_err(eval_err)?;
-        Ok((
-            obs_dict(py, &obs, self.inner.reference())?,
-            position_info(py, &info)?,
-        ))
+        let info = self.inner.step_position_in_place(r, c).map_err(eval_err)?;
+        let obs = self
+            .buffers
+            .fill(py, std::slice::from_mut(&mut self.inner), false, self.copy)?;
+        Ok((obs, position_info(py, &info)?))
     }
 
     /// Moves the gripper 0.18 m along `direction`. Returns (observation, labels, info).
@@ -331,10 +294,13 @@ impl Env {
         direction: Vec<f32>,
     ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>, Bound<'py, PyDict>)> {
         let d = parse_direction(direction)?;
-        let (obs, labels) = self.inner.step_direction(d).map_err(eval_err)?;
+        let labels = self.inner.step_direction_in_place(d).map_err(eval_err)?;
+        let obs = self
+            .buffers
+            .fill(py, std::slice::from_mut(&mut self.inner), false, self.copy)?;
         let joints = self.inner.joint_positions();
         Ok((
-            obs_dict(py, &obs, self.inner.reference())?,
+            obs,
             labels_dict(py, &labels)?,
             step_info(py, &labels, joints)?,
         ))
@@ -381,65 +347,23 @@ impl Env {
 
 /// n environments stepped in parallel Rust threads (GIL released); env i is
 /// seeded `seed + i`. Results are stacked into one numpy array per field.
+///
+/// Like `Env`, observations are buffers rewritten in place by every step
+/// unless `copy=True`.
 #[pyclass(module = "umpnet")]
 struct VecEnv {
     envs: Vec<TrainEnv>,
-}
-
-fn stack<'py>(
-    py: Python<'py>,
-    obs: &[EnvObservation],
-    refs: &[Option<&ndarray::Array3<f32>>],
-) -> PyResult<Bound<'py, PyDict>> {
-    let n = obs.len();
-    let (h, w, c) = obs.first().map(|o| o.image.dim()).unwrap_or((0, 0, 0));
-    let d = PyDict::new(py);
-    let mut image = Vec::with_capacity(n * h * w * c);
-    let mut reference = Vec::with_capacity(n * h * w * c);
-    let mut seg = Vec::with_capacity(n * h * w);
-    let mut gp = Vec::with_capacity(2 * n);
-    let mut intrinsics = Vec::with_capacity(9 * n);
-    let mut world_from_camera = Vec::with_capacity(16 * n);
-    for (o, r) in obs.iter().zip(refs) {
-        image.extend(o.image.iter().copied());
-        let [fx, fy, cx, cy] = o.intrinsics;
-        intrinsics.extend([fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]);
-        world_from_camera.extend(o.world_from_camera.iter().flatten().copied());
-        match r {
-            Some(r) => reference.extend(r.iter().copied()),
-            None => reference.extend(std::iter::repeat_n(0.0, h * w * c)),
-        }
-        seg.extend(o.segmentation.iter().map(|&s| s as i64));
-        let (gr, gc) = o
-            .gripper_pixel
-            .map(|(a, b)| (a as i64, b as i64))
-            .unwrap_or((-1, -1));
-        gp.extend([gr, gc]);
-    }
-    d.set_item("image", array(py, image, &[n, h, w, c])?)?;
-    d.set_item("reference", array(py, reference, &[n, h, w, c])?)?;
-    d.set_item(
-        "segmentation",
-        PyArray1::from_vec(py, seg).reshape(vec![n, h, w])?,
-    )?;
-    d.set_item(
-        "gripper_pixel",
-        PyArray1::from_vec(py, gp).reshape(vec![n, 2])?,
-    )?;
-    d.set_item("intrinsics", array(py, intrinsics, &[n, 3, 3])?)?;
-    d.set_item(
-        "world_from_camera",
-        array(py, world_from_camera, &[n, 4, 4])?,
-    )?;
-    Ok(d)
+    buffers: buffers::ObsBuffers,
+    copy: bool,
 }
 
 #[pymethods]
 impl VecEnv {
     #[new]
-    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference"))]
+    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", copy=false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
+        py: Python<'_>,
         n: usize,
         category: Option<Categories>,
         split: &str,
@@ -450,6 +374,7 @@ impl VecEnv {
         renderer: &str,
         dataset_seed: u64,
         physics: &str,
+        copy: bool,
     ) -> PyResult<Self> {
         if !(1..=MAX_ENVS).contains(&n) {
             return Err(PyValueError::new_err(format!(
@@ -470,7 +395,12 @@ impl VecEnv {
             .map(|i| TrainEnv::new(cfg.clone(), seed + i as u64))
             .collect::<Result<Vec<_>, _>>()
             .map_err(eval_err)?;
-        Ok(Self { envs })
+        let (h, w) = (resolution.0 as usize, resolution.1 as usize);
+        Ok(Self {
+            envs,
+            buffers: buffers::ObsBuffers::new(py, Some(n), h, w)?,
+            copy,
+        })
     }
 
     fn __len__(&self) -> usize {
@@ -500,16 +430,14 @@ impl VecEnv {
             None => vec![None; n],
         };
         let envs = &mut self.envs;
-        let obs: Vec<EnvObservation> = py
-            .detach(|| {
-                envs.par_iter_mut()
-                    .zip(scenes)
-                    .map(|(e, s)| e.reset(s))
-                    .collect::<Result<Vec<_>, _>>()
-            })
-            .map_err(eval_err)?;
-        let refs: Vec<_> = self.envs.iter().map(|e| e.reference()).collect();
-        stack(py, &obs, &refs)
+        py.detach(|| {
+            envs.par_iter_mut()
+                .zip(scenes)
+                .map(|(e, s)| e.reset_in_place(s))
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .map_err(eval_err)?;
+        self.buffers.fill(py, &mut self.envs, true, self.copy)
     }
 
     /// Scenes of all environments as JSON strings.
@@ -551,12 +479,12 @@ impl VecEnv {
             .detach(|| {
                 envs.par_iter_mut()
                     .enumerate()
-                    .map(|(i, e)| e.step_position(p[2 * i], p[2 * i + 1]))
+                    .map(|(i, e)| e.step_position_in_place(p[2 * i], p[2 * i + 1]))
                     .collect::<Result<Vec<_>, _>>()
             })
             .map_err(eval_err)?;
-        let (obs, infos): (Vec<_>, Vec<_>) = out.into_iter().unzip();
-        let refs: Vec<_> = self.envs.iter().map(|e| e.reference()).collect();
+        let infos = out;
+        let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
         let info = PyDict::new(py);
         info.set_item(
             "valid",
@@ -585,7 +513,7 @@ impl VecEnv {
                     .collect::<Vec<_>>(),
             ),
         )?;
-        Ok((stack(py, &obs, &refs)?, info))
+        Ok((obs, info))
     }
 
     /// directions: float array n x 3. Environments without a valid grasp are
@@ -618,20 +546,19 @@ impl VecEnv {
                     .zip(&dirs)
                     .map(|(e, d)| {
                         if e.grasped_joint().is_some() {
-                            e.step_direction(*d).map(|(o, l)| (o, Some(l)))
+                            e.step_direction_in_place(*d).map(Some)
                         } else {
-                            e.reset_observation().map(|o| (o, None))
+                            Ok(None)
                         }
                     })
                     .collect::<Result<Vec<_>, _>>()
             })
             .map_err(eval_err)?;
-        let refs: Vec<_> = self.envs.iter().map(|e| e.reference()).collect();
-        let obs: Vec<EnvObservation> = out.iter().map(|(o, _)| o.clone()).collect();
+        let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
         let labels = PyDict::new(py);
         let get = |f: &dyn Fn(&StepLabels) -> f32| -> Vec<f32> {
             out.iter()
-                .map(|(_, l)| l.as_ref().map(f).unwrap_or(0.0))
+                .map(|l| l.as_ref().map(f).unwrap_or(0.0))
                 .collect()
         };
         labels.set_item("r_dist", PyArray1::from_vec(py, get(&|l| l.r_dist)))?;
@@ -640,7 +567,7 @@ impl VecEnv {
             PyArray1::from_vec(
                 py,
                 out.iter()
-                    .map(|(_, l)| l.as_ref().map(|l| l.aot as i64).unwrap_or(0))
+                    .map(|l| l.as_ref().map(|l| l.aot as i64).unwrap_or(0))
                     .collect::<Vec<_>>(),
             ),
         )?;
@@ -649,7 +576,7 @@ impl VecEnv {
             PyArray1::from_vec(
                 py,
                 out.iter()
-                    .map(|(_, l)| l.as_ref().is_some_and(|l| l.moved))
+                    .map(|l| l.as_ref().is_some_and(|l| l.moved))
                     .collect::<Vec<_>>(),
             ),
         )?;
@@ -658,12 +585,12 @@ impl VecEnv {
             PyArray1::from_vec(
                 py,
                 out.iter()
-                    .map(|(_, l)| l.as_ref().map(|l| l.train.aot as i64).unwrap_or(0))
+                    .map(|l| l.as_ref().map(|l| l.train.aot as i64).unwrap_or(0))
                     .collect::<Vec<_>>(),
             ),
         )?;
         let flag = |f: &dyn Fn(&StepLabels) -> bool| -> Vec<bool> {
-            out.iter().map(|(_, l)| l.as_ref().is_some_and(f)).collect()
+            out.iter().map(|l| l.as_ref().is_some_and(f)).collect()
         };
         labels.set_item(
             "train_moved",
@@ -672,7 +599,7 @@ impl VecEnv {
         let info = PyDict::new(py);
         info.set_item(
             "active",
-            PyArray1::from_vec(py, out.iter().map(|(_, l)| l.is_some()).collect::<Vec<_>>()),
+            PyArray1::from_vec(py, out.iter().map(|l| l.is_some()).collect::<Vec<_>>()),
         )?;
         info.set_item(
             "joint_after",
@@ -690,7 +617,7 @@ impl VecEnv {
             "reached_init",
             PyArray1::from_vec(py, flag(&|l| l.train.reached_init)),
         )?;
-        Ok((stack(py, &obs, &refs)?, labels, info))
+        Ok((obs, labels, info))
     }
 
     /// Dense labels for every environment: `directions` is float32 (n, k, 3);
@@ -868,6 +795,7 @@ fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
 }
 
 mod arrays;
+mod buffers;
 mod physics;
 mod probe;
 

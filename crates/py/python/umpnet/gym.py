@@ -18,6 +18,11 @@ in units of delta (0.15 rad or m):
 A grasp on nothing movable (or, in the goal task, on the wrong part) ends the
 episode. The direction budget is the category's (the paper's), unless
 ``max_steps`` is given. ``info`` carries ``success`` and ``elapsed_steps``.
+
+Observations are fresh arrays, as gymnasium's wrappers (frame stacks,
+recorders) expect. ``copy=False`` returns the environment's reused buffers
+instead (the zero-copy path of ``umpnet.Env``): faster, but each step
+rewrites the previous observation.
 """
 
 from __future__ import annotations
@@ -45,6 +50,7 @@ class UmpnetEnv(gym.Env):
         self.task, self.max_steps, self.render_mode = task, max_steps, render_mode
         h, w = resolution
         self._seed = env_kwargs.pop("seed", 0)
+        env_kwargs.setdefault("copy", True)
         self._kwargs = dict(task=task, resolution=resolution, **env_kwargs)
         self._env = Env(seed=self._seed, **self._kwargs)
         image = spaces.Box(-np.inf, np.inf, shape=(h, w, 10), dtype=np.float32)

@@ -48,7 +48,10 @@ fn init() -> std::result::Result<Gpu, String> {
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
     }
     let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-    desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL;
+    // Vulkan only, unless WGPU_BACKEND says otherwise (`gl`, `vulkan,gl`): an
+    // enabled GL backend initialises EGL in this process, and another EGL
+    // user beside us (PyBullet's renderer) then reads stale frames.
+    desc.backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::VULKAN);
     let instance = wgpu::Instance::new(desc);
     let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
         power_preference: wgpu::PowerPreference::HighPerformance,
