@@ -47,8 +47,8 @@ eval-baselines: build
 lint: install
 	cargo fmt --all --check
 	cargo clippy --release --workspace --all-targets -- -D warnings
-	.venv/bin/ruff check tests train_py crates/py scripts
-	.venv/bin/ruff format --check tests train_py crates/py scripts
+	.venv/bin/ruff check tests train_py crates/py scripts benches
+	.venv/bin/ruff format --check tests train_py crates/py scripts benches
 
 test-rust: fixture
 	UMPNET_REQUIRE_WGPU=1 cargo test --release

@@ -20,6 +20,26 @@ pub struct BenchArgs {
     /// Actions per physics figure.
     #[arg(long, default_value_t = 300)]
     pub actions: usize,
+    /// Measure this URDF only (physics in both profiles, observations at both
+    /// resolutions): the figures benches/compare_pybullet.py sets beside PyBullet's.
+    #[arg(long)]
+    pub object: Option<std::path::PathBuf>,
+}
+
+fn object_args(
+    category: Option<Category>,
+    instance: Option<u32>,
+    object: Option<&std::path::Path>,
+    physics: PhysicsProfile,
+) -> crate::ObjectArgs {
+    crate::ObjectArgs {
+        category,
+        object: object.map(std::path::Path::to_path_buf),
+        seed: 1,
+        instance,
+        dataset_seed: 0,
+        physics,
+    }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -28,15 +48,15 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Physics: median time of one 0.18 m action with the oracle's directions (re-grasping after each episode).
-fn physics_ms(category: Category, physics: PhysicsProfile, actions: usize) -> Result<f64> {
-    let args = crate::ObjectArgs {
-        category: Some(category),
-        object: None,
-        seed: 1,
-        instance: None,
-        dataset_seed: 0,
-        physics,
-    };
+fn physics_ms(args: &crate::ObjectArgs, actions: usize) -> Result<f64> {
+    let label = args.category.map_or_else(
+        || {
+            args.object
+                .as_ref()
+                .map_or(String::new(), |p| p.display().to_string())
+        },
+        |c| c.name().to_string(),
+    );
     let scene = args.scene(Task::Exploration)?;
     let mut env = SimEnv::new(
         scene.clone(),
@@ -56,7 +76,7 @@ fn physics_ms(category: Category, physics: PhysicsProfile, actions: usize) -> Re
         };
         let px = oracle.position(&obs, &env)?;
         if let Pick::NoMovableLink = env.step_position(&f, px.0, px.1)? {
-            anyhow::bail!("oracle found no movable link on the benchmark {category}");
+            anyhow::bail!("oracle found no movable link on the benchmark object {label}");
         }
         for _ in 0..10 {
             let Decision::Move { direction, .. } = oracle.direction(&obs, &env, &[])? else {
@@ -93,20 +113,11 @@ fn largest_object() -> (Category, u32, usize) {
 
 /// Median (render + readback, 10-channel tensor, both) in ms.
 fn observation_ms(
-    category: Category,
-    instance: u32,
+    args: &crate::ObjectArgs,
     res: (u32, u32),
     kind: RendererKind,
     frames: usize,
 ) -> Result<((f64, f64, f64), String)> {
-    let args = crate::ObjectArgs {
-        category: Some(category),
-        object: None,
-        seed: 1,
-        instance: Some(instance),
-        dataset_seed: 0,
-        physics: PhysicsProfile::default(),
-    };
     let scene = args.scene(Task::Exploration)?;
     let mut env = SimEnv::new(
         scene,
@@ -133,25 +144,58 @@ fn observation_ms(
 
 pub fn run(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
     let mut rows = Vec::new();
-    for c in [
-        Category::StorageFurniture,
-        Category::Refrigerator,
-        Category::Microwave,
-    ] {
+    let physics_objects: Vec<(String, Option<Category>)> = match &a.object {
+        Some(p) => vec![(p.display().to_string(), None)],
+        None => [
+            Category::StorageFurniture,
+            Category::Refrigerator,
+            Category::Microwave,
+        ]
+        .iter()
+        .map(|c| (c.name().to_string(), Some(*c)))
+        .collect(),
+    };
+    for (label, c) in &physics_objects {
         for (physics, target) in [
             (PhysicsProfile::Reference, 1.0),
             (PhysicsProfile::Ideal, 1.5),
         ] {
-            let ms = physics_ms(c, physics, a.actions)?;
-            rows.push(serde_json::json!({"figure": format!("physics per 0.18 m action ({physics})"), "object": c.name(), "renderer": match physics { PhysicsProfile::Reference => "PGS (Bullet's schedule)", PhysicsProfile::Ideal => "rapier3d multibody" }, "median_ms": ms, "target_ms": target}));
+            let ms = physics_ms(
+                &object_args(*c, None, a.object.as_deref(), physics),
+                a.actions,
+            )?;
+            rows.push(serde_json::json!({"figure": format!("physics per 0.18 m action ({physics})"), "object": label, "renderer": match physics { PhysicsProfile::Reference => "PGS (Bullet's schedule)", PhysicsProfile::Ideal => "rapier3d multibody" }, "median_ms": ms, "target_ms": target}));
         }
     }
-    let (big, big_i, tris) = largest_object();
-    let cab_i = umpnet_sim::objects::nth_instance(
-        Category::StorageFurniture,
-        umpnet_sim::objects::InstanceSplit::Test,
-        0,
-    );
+    let views: Vec<(crate::ObjectArgs, String)> = match &a.object {
+        Some(p) => vec![(
+            object_args(None, None, Some(p), PhysicsProfile::default()),
+            p.display().to_string(),
+        )],
+        None => {
+            let (big, big_i, tris) = largest_object();
+            let cab_i = umpnet_sim::objects::nth_instance(
+                Category::StorageFurniture,
+                umpnet_sim::objects::InstanceSplit::Test,
+                0,
+            );
+            vec![
+                (
+                    object_args(
+                        Some(Category::StorageFurniture),
+                        Some(cab_i),
+                        None,
+                        PhysicsProfile::default(),
+                    ),
+                    "cabinet".to_string(),
+                ),
+                (
+                    object_args(Some(big), Some(big_i), None, PhysicsProfile::default()),
+                    format!("largest ({big}, {tris} triangles)"),
+                ),
+            ]
+        }
+    };
     let gpu = umpnet_sim::render::gpu_available();
     for (kind, frames) in [
         (RendererKind::Wgpu, a.frames),
@@ -162,11 +206,8 @@ pub fn run(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
             continue;
         }
         for res in [(480, 640), (120, 160)] {
-            for (c, i, label) in [
-                (Category::StorageFurniture, cab_i, "cabinet".to_string()),
-                (big, big_i, format!("largest ({big}, {tris} triangles)")),
-            ] {
-                let ((render_ms, tensor_ms, ms), name) = observation_ms(c, i, res, kind, frames)?;
+            for (args, label) in &views {
+                let ((render_ms, tensor_ms, ms), name) = observation_ms(args, res, kind, frames)?;
                 let target = match (kind, res.0) {
                     (RendererKind::Wgpu, 480) => Some(15.0),
                     (RendererKind::Wgpu, _) => Some(3.0),

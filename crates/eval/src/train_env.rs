@@ -309,6 +309,17 @@ impl TrainEnv {
         self.env.as_ref().and_then(|e| e.grasped_joint())
     }
 
+    /// Renders the current state again (for a caller that changed nothing, the
+    /// same frame): what `Env.observe()` times and returns.
+    pub fn render_in_place(&mut self) -> Result<()> {
+        let env = self
+            .env
+            .as_mut()
+            .ok_or_else(|| EvalError::Episode("reset() first".into()))?;
+        self.frame = Some(env.render()?);
+        Ok(())
+    }
+
     /// The current observation, without acting.
     pub fn reset_observation(&self) -> Result<EnvObservation> {
         self.observe(self.current_frame()?)

@@ -258,6 +258,14 @@ impl Env {
             .fill(py, std::slice::from_mut(&mut self.inner), true, self.copy)
     }
 
+    /// Renders the current state into the observation buffers without acting
+    /// (the same observation the last step returned, bit for bit).
+    fn observe<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.inner.render_in_place().map_err(eval_err)?;
+        self.buffers
+            .fill(py, std::slice::from_mut(&mut self.inner), false, self.copy)
+    }
+
     /// The scene as JSON; `reset(scene=...)` replays it exactly.
     #[getter]
     fn scene(&self) -> PyResult<String> {

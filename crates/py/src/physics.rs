@@ -195,8 +195,12 @@ impl Articulation {
         if self.art.grasped_link().is_none() {
             return Err(PyRuntimeError::new_err("no grasp: call grasp() first"));
         }
+        let t = std::time::Instant::now();
         let o = self.art.move_gripper(d.normalize(), j).map_err(value_err)?;
+        // The physics alone, without the Python call around it: benches set it beside PyBullet's.
+        let seconds = t.elapsed().as_secs_f64();
         let out = PyDict::new(py);
+        out.set_item("seconds", seconds)?;
         out.set_item("joint_before", o.joint_before)?;
         out.set_item("joint_after", o.joint_after)?;
         out.set_item("gripper_moved", o.gripper_moved)?;

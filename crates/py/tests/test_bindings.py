@@ -3,6 +3,7 @@
 import json
 import os
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -213,6 +214,12 @@ def test_articulation_reports_bad_input_by_name(tmp_path):
         art.move_gripper([0, 0, 0], joint)
     with pytest.raises(ValueError, match="steps_per_update"):
         umpnet.Articulation(urdf, steps_per_update=0)
+    # A real move reports the time its physics took inside Rust: positive, and
+    # below the wall time of the whole Python call.
+    t = time.perf_counter()
+    out = art.move_gripper([0, -1, 0], joint)
+    wall = time.perf_counter() - t
+    assert out["steps"] > 0 and 0 < out["seconds"] <= wall
     with pytest.raises(ValueError, match="scale"):
         umpnet.Articulation(urdf, scale=-1.0)
 
@@ -404,3 +411,7 @@ def test_observations_are_reused_buffers_equal_to_fresh_copies():
     assert all(o[k].tobytes() == p[k].tobytes() for k in o)
     o2, _ = e.step_position(*e.scripted_action("oracle"))
     assert o2["image"] is o["image"]
+    # observe() renders the unchanged state again: the same observation, bit for bit.
+    kept = {k: v.copy() for k, v in o2.items()}
+    o3 = e.observe()
+    assert o3["image"] is o["image"] and all(o3[k].tobytes() == kept[k].tobytes() for k in kept)
