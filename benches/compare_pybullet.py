@@ -227,6 +227,20 @@ def rust_figures(urdf, frames):
     return out
 
 
+class StdoutToStderr:
+    """PyBullet's C code prints to file descriptor 1; keep it off the report (and the JSON)."""
+
+    def __enter__(self):
+        sys.stdout.flush()
+        self.saved = os.dup(1)
+        os.dup2(2, 1)
+
+    def __exit__(self, *_):
+        sys.stdout.flush()
+        os.dup2(self.saved, 1)
+        os.close(self.saved)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeats", type=int, default=15)
@@ -239,18 +253,19 @@ def main():
     log = (lambda *_: None) if a.json else (lambda *m: print(*m, file=sys.stderr, flush=True))
     log(f"comparing on {urdf} ({case.name}); {a.repeats} repeats")
     result = {"urdf": CABINET_URDF, "case": case.name}
-    log("physics ...")
-    result["physics_ms"] = physics(case, a.repeats)
-    log("observations ...")
-    result["observation_ms"] = observations(urdf, a.repeats)
-    log("episodes ...")
-    result["episode_480x640_ms"] = episodes(case, urdf, max(3, a.repeats // 3))
-    log("umpnet bench (Rust) ...")
-    result["rust_ms"] = rust_figures(urdf, a.repeats)
-    log("VecEnv ...")
-    result["vecenv_actions_per_s"] = vecenv_rates([int(n) for n in a.sizes.split(",")])
-    log("render agreement ...")
-    result["segmentation_agreement"] = agreement(urdf)
+    with StdoutToStderr():
+        log("physics ...")
+        result["physics_ms"] = physics(case, a.repeats)
+        log("observations ...")
+        result["observation_ms"] = observations(urdf, a.repeats)
+        log("episodes ...")
+        result["episode_480x640_ms"] = episodes(case, urdf, max(3, a.repeats // 3))
+        log("umpnet bench (Rust) ...")
+        result["rust_ms"] = rust_figures(urdf, a.repeats)
+        log("VecEnv ...")
+        result["vecenv_actions_per_s"] = vecenv_rates([int(n) for n in a.sizes.split(",")])
+        log("render agreement ...")
+        result["segmentation_agreement"] = agreement(urdf)
     result["targets"] = targets(result)
     if a.json:
         print(json.dumps(result, indent=1))
