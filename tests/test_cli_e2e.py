@@ -337,3 +337,27 @@ def test_unix_manners_and_clear_lookups(tmp_path):
         env["ORT_DYLIB_PATH"] = str(libs[0])
         p = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300, check=False)
     assert p.returncode == 0, p.stderr
+
+
+def test_each_policy_sees_its_own_resolution_so_listing_others_changes_nothing(tmp_path):
+    """Scripted policies see --resolution and a learned one its package's input;
+    random's episodes are the same whether or not a learned policy is listed."""
+    fixture = fixture_package()
+    common = ["eval", "--task", "goal", "--categories", "Door,Microwave", "--episodes-per-category", "3", "--seed", "7"]
+    run(*common, "--policies", "oracle,random", "--out", str(tmp_path / "a"))
+    p = run(*common, "--policies", f"umpnet={fixture},oracle,random", "--out", str(tmp_path / "b"))
+    meta = json.loads(Path(fixture, "model.json").read_text())["input"]
+    assert "images: oracle, random at 120x160" in p.stdout and f"umpnet at {meta['height']}x{meta['width']}" in p.stdout
+    a = json.loads((tmp_path / "a" / "results.json").read_text())
+    b = json.loads((tmp_path / "b" / "results.json").read_text())
+    assert b["summary"]["resolutions"] == {
+        "oracle": [120, 160],
+        "random": [120, 160],
+        "umpnet": [meta["height"], meta["width"]],
+    }
+
+    def episodes(r, policy):
+        return [json.dumps(e, sort_keys=True) for e in r["episodes"] if e["policy"] == policy]
+
+    for policy in ("random", "oracle"):
+        assert episodes(a, policy) == episodes(b, policy) and len(episodes(a, policy)) == 6, policy

@@ -42,7 +42,13 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         Some((_, make)) => make()?,
         None => return Err(usage("--policy is empty")),
     };
-    let resolution = resolved.resolution.unwrap_or(a.resolution);
+    // One policy: a learned one sees its package's input resolution.
+    let resolution = resolved
+        .resolutions
+        .values()
+        .next()
+        .copied()
+        .unwrap_or(a.resolution);
     let scene = a.object.scene(task)?;
     let budget = a
         .steps

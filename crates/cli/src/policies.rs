@@ -50,8 +50,8 @@ pub fn default_model() -> Result<PathBuf> {
 
 pub struct Resolved {
     pub factories: Vec<(String, PolicyFactory)>,
-    /// The learned packages' input resolution, when one is used.
-    pub resolution: Option<(u32, u32)>,
+    /// Each learned package's input resolution, by policy name.
+    pub resolutions: std::collections::BTreeMap<String, (u32, u32)>,
     /// Each learned policy's package directory, by policy name.
     pub packages: Vec<(String, PathBuf)>,
 }
@@ -73,7 +73,7 @@ pub fn resolve(
             )));
         }
     }
-    let mut resolution: Option<(u32, u32)> = None;
+    let mut resolutions = std::collections::BTreeMap::new();
     let mut packages = Vec::new();
     for spec in specs {
         let (name, dir) = match spec.split_once('=') {
@@ -118,13 +118,7 @@ pub fn resolve(
                     )));
                 }
                 let r = (pkg.meta.input.height as u32, pkg.meta.input.width as u32);
-                if let Some(prev) = resolution.filter(|p| *p != r) {
-                    return Err(usage(format!(
-                        "policy `{name}` takes {}x{} images but another takes {}x{}",
-                        r.0, r.1, prev.0, prev.1
-                    )));
-                }
-                resolution = Some(r);
+                resolutions.insert(name.clone(), r);
                 packages.push((name.clone(), dir.clone()));
                 let n = name.clone();
                 let f: PolicyFactory = Arc::new(move || {
@@ -137,7 +131,7 @@ pub fn resolve(
     }
     Ok(Resolved {
         factories,
-        resolution,
+        resolutions,
         packages,
     })
 }

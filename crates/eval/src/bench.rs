@@ -129,7 +129,11 @@ pub struct BenchConfig {
     pub episodes_per_category: u32,
     pub seed: u64,
     pub dataset_seed: u64,
+    /// The camera of every policy not in `policy_cameras`.
     pub camera: Camera,
+    /// Policies that see their own camera (a learned package sees its input
+    /// resolution); the scenes are the same for every policy.
+    pub policy_cameras: std::collections::BTreeMap<String, Camera>,
     pub renderer: RendererKind,
     /// Step budget override (default: the protocol's).
     pub steps: Option<usize>,
@@ -265,7 +269,7 @@ fn run_scene(
                     let seed = scene_seed(cfg.seed ^ 0x5EED, cfg.task, category, k);
                     run_episode(
                         scene,
-                        &cfg.camera,
+                        cfg.policy_cameras.get(name).unwrap_or(&cfg.camera),
                         renderer,
                         policy.as_mut(),
                         EpisodeConfig {

@@ -39,6 +39,7 @@ fn config(task: Task, categories: Vec<Category>, episodes_per_category: u32) -> 
         seed: 0,
         dataset_seed: 0,
         camera: Camera::reference(48, 64),
+        policy_cameras: Default::default(),
         renderer: RendererKind::Cpu,
         steps: None,
         physics: Default::default(),

@@ -55,6 +55,8 @@ pub struct EvalArgs {
     pub model: Option<PathBuf>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Camera images (HEIGHTxWIDTH) of oracle and random; a learned policy
+    /// sees its package's input resolution. All see the same scenes.
     #[arg(long, default_value = "120x160", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
     #[arg(long, default_value = "auto")]
@@ -164,7 +166,17 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     }
     let policies: Vec<(String, PolicyFactory)> = resolved.factories;
     let names: Vec<String> = policies.iter().map(|(n, _)| n.clone()).collect();
-    let resolution = resolved.resolution.unwrap_or(a.resolution);
+    // Scripted policies see --resolution, learned ones their package's input
+    // resolution; every policy sees the same scenes. A policy's results thus
+    // never depend on which others are listed beside it.
+    let resolution = a.resolution;
+    let resolutions: BTreeMap<String, [u32; 2]> = names
+        .iter()
+        .map(|n| {
+            let (h, w) = resolved.resolutions.get(n).copied().unwrap_or(resolution);
+            (n.clone(), [h, w])
+        })
+        .collect();
     let renderer = resolve_renderer(a.renderer)?;
     let shard = a.shard.unwrap_or_default();
     let cfg = BenchConfig {
@@ -174,6 +186,11 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         seed: a.seed,
         dataset_seed: 0,
         camera: Camera::reference(resolution.0, resolution.1),
+        policy_cameras: resolved
+            .resolutions
+            .iter()
+            .map(|(n, (h, w))| (n.clone(), Camera::reference(*h, *w)))
+            .collect(),
         renderer,
         steps: None,
         physics: a.physics,
@@ -213,6 +230,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
             physics: a.physics,
             protocol: a.protocol,
             resolution: [resolution.0, resolution.1],
+            resolutions,
             renderer: match renderer {
                 RendererKind::Wgpu => "wgpu",
                 _ => "cpu",
@@ -250,6 +268,19 @@ fn finish(ctx: &Ctx, report: &Report, out: Option<&Path>, scenes: usize) -> Resu
         );
     }
     print!("{}", report.table(&scored));
+    // Which images each policy saw (learned packages see their input resolution).
+    let mut groups: BTreeMap<[u32; 2], Vec<&str>> = BTreeMap::new();
+    for (name, res) in &report.run.resolutions {
+        groups.entry(*res).or_default().push(name);
+    }
+    let seen: Vec<String> = groups
+        .iter()
+        .rev()
+        .map(|([h, w], names)| format!("{} at {h}x{w}", names.join(", ")))
+        .collect();
+    if !seen.is_empty() {
+        println!("images: {} (same scenes for all)", seen.join("; "));
+    }
     println!(
         "{} episodes ({} scenes x {} policies) in {:.1} s; {} failed",
         scored.len(),

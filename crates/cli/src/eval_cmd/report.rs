@@ -24,8 +24,11 @@ pub struct RunInfo {
     pub episodes_per_category: u32,
     pub physics: PhysicsProfile,
     pub protocol: Protocol,
-    /// (height, width) of the camera images.
+    /// (height, width) of the scripted policies' camera images.
     pub resolution: [u32; 2],
+    /// (height, width) each policy saw: learned packages see their input resolution.
+    #[serde(default)]
+    pub resolutions: BTreeMap<String, [u32; 2]>,
     /// The renderer that ran (`wgpu` or `cpu`, `auto` resolved).
     pub renderer: String,
     pub policies: Vec<String>,
