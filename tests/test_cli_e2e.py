@@ -263,7 +263,7 @@ def test_physics_and_protocol_switches_reach_the_episode_and_the_results(tmp_pat
     assert summary["protocol"] == "strict" and summary["physics"] == "reference"
     assert "oracle" in summary["policies"]  # the ceiling is always there
     bad = run("eval", "--protocol", "fast", check=False)
-    assert bad.returncode == 2 and "paper or strict" in bad.stderr
+    assert bad.returncode == 2 and "[possible values: paper, strict]" in bad.stderr
 
 
 def _without_wall_time(path: Path) -> bytes:

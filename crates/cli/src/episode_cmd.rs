@@ -17,7 +17,7 @@ pub struct EpisodeArgs {
     #[arg(long)]
     pub steps: Option<usize>,
     /// Evaluation protocol: paper (the paper's evaluation code) or strict.
-    #[arg(long, default_value = "paper", value_parser = crate::parse_protocol)]
+    #[arg(long, default_value = "paper", value_parser = crate::choice::<umpnet_eval::Protocol>(crate::PROTOCOLS))]
     pub protocol: umpnet_eval::Protocol,
     /// random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
     #[arg(long, default_value = "oracle")]
@@ -28,7 +28,7 @@ pub struct EpisodeArgs {
     /// Image size; a learned policy uses its model's.
     #[arg(long, default_value = "240x320", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
-    #[arg(long, default_value = "auto")]
+    #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
     pub renderer: RendererKind,
     /// Write one PNG per step, a contact sheet and an animated GIF here.
     #[arg(long)]

@@ -109,13 +109,27 @@ pub fn parse_category(s: &str) -> std::result::Result<Category, String> {
     s.parse::<Category>().map_err(|e| e.to_string())
 }
 
-pub fn parse_physics(s: &str) -> std::result::Result<PhysicsProfile, String> {
-    s.parse::<PhysicsProfile>().map_err(|e| e.to_string())
+/// A flag over a fixed set of names (`name` or `name|alias`): `--help` lists
+/// them, a wrong one is refused with the list, and the name is then parsed
+/// into the library's type (which knows no clap).
+pub fn choice<T>(names: &'static [&'static str]) -> impl clap::builder::TypedValueParser<Value = T>
+where
+    T: std::str::FromStr + Clone + Send + Sync + 'static,
+    T::Err: Into<Box<dyn std::error::Error + Send + Sync + 'static>>,
+{
+    let values = names.iter().map(|n| {
+        let mut parts = n.split('|');
+        let name = parts.next().unwrap_or(n);
+        clap::builder::PossibleValue::new(name).aliases(parts)
+    });
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(values).try_map(|s| s.parse::<T>())
 }
 
-pub fn parse_protocol(s: &str) -> std::result::Result<umpnet_eval::Protocol, String> {
-    s.parse::<umpnet_eval::Protocol>()
-}
+pub const PHYSICS: &[&str] = &["reference", "ideal"];
+pub const PROTOCOLS: &[&str] = &["paper", "strict"];
+pub const TASKS: &[&str] = &["exploration|explore", "goal"];
+pub const RENDERERS: &[&str] = &["auto", "wgpu|gpu", "cpu"];
 
 /// Which object and scene: a generated instance of a category, or a URDF file.
 #[derive(clap::Args, Clone)]
@@ -137,7 +151,7 @@ pub struct ObjectArgs {
     pub dataset_seed: u64,
     /// Physics profile: reference (the paper's simulator) or ideal (every pull
     /// follows the joint's path).
-    #[arg(long, default_value = "reference", value_parser = parse_physics)]
+    #[arg(long, default_value = "reference", value_parser = choice::<PhysicsProfile>(PHYSICS))]
     pub physics: PhysicsProfile,
 }
 
@@ -222,5 +236,54 @@ fn main() {
         let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
         eprintln!("error: {}", msg.join(": "));
         std::process::exit(code);
+    }
+}
+
+#[cfg(test)]
+mod choice_tests {
+    use super::*;
+
+    fn all_parse<T: std::str::FromStr>(names: &[&str]) {
+        for n in names.iter().flat_map(|n| n.split('|')) {
+            assert!(n.parse::<T>().is_ok(), "listed value `{n}` does not parse");
+        }
+    }
+
+    #[test]
+    fn every_listed_value_parses_and_every_profile_is_listed() {
+        all_parse::<PhysicsProfile>(PHYSICS);
+        all_parse::<umpnet_eval::Protocol>(PROTOCOLS);
+        all_parse::<Task>(TASKS);
+        all_parse::<umpnet_sim::render::RendererKind>(RENDERERS);
+        for p in PhysicsProfile::ALL {
+            assert!(PHYSICS.contains(&p.name()), "{} is not offered", p.name());
+        }
+    }
+
+    #[test]
+    fn help_lists_the_values_and_a_wrong_one_is_refused_with_them() {
+        use clap::CommandFactory;
+        let mut cmd = Cli::command();
+        let help = cmd
+            .find_subcommand_mut("eval")
+            .map(|c| c.render_long_help().to_string())
+            .unwrap_or_default();
+        for v in [
+            "[possible values: exploration, goal]",
+            "[possible values: auto, wgpu, cpu]",
+            "[possible values: reference, ideal]",
+            "[possible values: paper, strict]",
+        ] {
+            assert!(help.contains(v), "eval --help lacks {v}");
+        }
+        let err = Cli::try_parse_from(["umpnet", "eval", "--physics", "bullet"])
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(err.contains("reference, ideal"), "{err}");
+        assert!(
+            Cli::try_parse_from(["umpnet", "eval", "--task", "explore", "--renderer", "gpu"])
+                .is_ok()
+        );
     }
 }

@@ -10,7 +10,7 @@ pub struct RenderArgs {
     pub object: crate::ObjectArgs,
     #[arg(long, default_value = "480x640", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
-    #[arg(long, default_value = "auto")]
+    #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
     pub renderer: RendererKind,
     #[arg(long)]
     pub out: PathBuf,

@@ -37,7 +37,7 @@ pub enum EvalAction {
 
 #[derive(clap::Args)]
 pub struct EvalArgs {
-    #[arg(long, default_value = "exploration")]
+    #[arg(long, default_value = "exploration", value_parser = crate::choice::<Task>(crate::TASKS))]
     pub task: Task,
     /// Comma-separated categories (overrides --split).
     #[arg(long, value_delimiter = ',', value_parser = crate::parse_category)]
@@ -59,13 +59,13 @@ pub struct EvalArgs {
     /// sees its package's input resolution. All see the same scenes.
     #[arg(long, default_value = "120x160", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
-    #[arg(long, default_value = "auto")]
+    #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
     pub renderer: RendererKind,
     /// Physics profile: reference (the paper's simulator) or ideal.
-    #[arg(long, default_value = "reference", value_parser = crate::parse_physics)]
+    #[arg(long, default_value = "reference", value_parser = crate::choice::<PhysicsProfile>(crate::PHYSICS))]
     pub physics: PhysicsProfile,
     /// Evaluation protocol: paper (the paper's evaluation code) or strict.
-    #[arg(long, default_value = "paper", value_parser = crate::parse_protocol)]
+    #[arg(long, default_value = "paper", value_parser = crate::choice::<Protocol>(crate::PROTOCOLS))]
     pub protocol: Protocol,
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
