@@ -7,12 +7,16 @@ export XDG_RUNTIME_DIR ?= /tmp
 FIXTURE := $(CURDIR)/target/fixture
 export UMPNET_FIXTURE := $(FIXTURE)
 
-.PHONY: install build py fixture demo eval-baselines test lint test-rust test-python mutants mutants-ci clean
+.PHONY: install install-runtime build py fixture demo eval-baselines test lint test-rust test-python mutants mutants-ci clean
 
 install:
-	@bash scripts/install.sh
+	@bash scripts/install.sh all
 
-build: install
+# The demo and the binary alone: no PyTorch.
+install-runtime:
+	@bash scripts/install.sh runtime
+
+build: install-runtime
 	cargo build --release
 
 # The Python module `umpnet` (Rust, through maturin) into .venv.

@@ -19,10 +19,18 @@ if [ ! -x .venv/bin/python ]; then
   echo "install: creating .venv"
   python3 -m venv .venv
 fi
-stamp=.venv/.umpnet-requirements
-if [ ! -f "$stamp" ] || ! cmp -s train_py/requirements.txt "$stamp"; then
-  echo "install: Python packages from train_py/requirements.txt"
+# `install.sh runtime` (make demo, make build): what the binary needs, no PyTorch.
+# `install.sh` (make test, training): everything.
+what=${1:-all}
+case "$what" in
+  runtime) reqs=requirements/runtime.txt ;;
+  all) reqs=train_py/requirements.txt ;;
+  *) echo "install.sh: expected 'runtime' or 'all', got '$what'" >&2; exit 2 ;;
+esac
+stamp=.venv/.umpnet-requirements-$what
+if [ ! -f "$stamp" ] || ! cat "$reqs" requirements/runtime.txt | cmp -s - "$stamp"; then
+  echo "install: Python packages from $reqs"
   .venv/bin/python -m pip install -q --upgrade pip
-  .venv/bin/python -m pip install -q -r train_py/requirements.txt
-  cp train_py/requirements.txt "$stamp"
+  .venv/bin/python -m pip install -q -r "$reqs"
+  cat "$reqs" requirements/runtime.txt > "$stamp"
 fi
