@@ -361,3 +361,24 @@ def test_each_policy_sees_its_own_resolution_so_listing_others_changes_nothing(t
 
     for policy in ("random", "oracle"):
         assert episodes(a, policy) == episodes(b, policy) and len(episodes(a, policy)) == 6, policy
+
+
+def test_readme_infer_example_runs_as_written(tmp_path):
+    """The README's render -> infer commands, as written, with the shipped model."""
+    readme = (ROOT / "README.md").read_text()
+    block = readme.split("umpnet render --category Microwave", 1)[1].split("```", 1)[0]
+    lines = ("umpnet render --category Microwave" + block).replace("\\\n", " ").strip().splitlines()
+    assert len(lines) == 2 and lines[1].startswith("umpnet infer"), lines
+    outputs = []
+    for line in lines:
+        args = [a.replace("out/frame", str(tmp_path / "frame")) for a in line.split()[1:]]
+        outputs.append(run("--json", *args).stdout)
+    res = json.loads(outputs[1])
+    assert res["mode"] == "explore" and len(res["pixel"]) == 2 and res["point_in_world"] is not None
+    assert abs(sum(v * v for v in res["direction"]) - 1) < 1e-4
+    # A camera.json that is not one is refused by name.
+    (tmp_path / "bad.json").write_text('{"intrinsics": [1, 2]}')
+    args = [a.replace("out/frame", str(tmp_path / "frame")) for a in lines[1].split()[1:]]
+    args[args.index("--camera") + 1] = str(tmp_path / "bad.json")
+    bad = run(*args, check=False)
+    assert bad.returncode == 2 and "bad.json" in bad.stderr, bad.stderr

@@ -25,6 +25,10 @@ pub struct InferArgs {
     /// world_from_camera, 16 numbers row-major (camera axes: x right, y down, z forward).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub camera_pose: Vec<f32>,
+    /// Intrinsics and pose from a camera.json (as `umpnet render` writes it),
+    /// instead of --intrinsics and --camera-pose.
+    #[arg(long, conflicts_with_all = ["intrinsics", "camera_pose"])]
+    pub camera: Option<PathBuf>,
     /// Reference (goal) colour image; with it the goal task is solved.
     #[arg(long)]
     pub reference: Option<PathBuf>,
@@ -125,14 +129,47 @@ struct Camera {
     world_from_camera: [[f32; 4]; 4],
 }
 
+#[derive(serde::Deserialize)]
+struct CameraFile {
+    intrinsics: FileIntrinsics,
+    /// Rows of the 4x4 transform.
+    world_from_camera: [[f32; 4]; 4],
+}
+
+#[derive(serde::Deserialize)]
+struct FileIntrinsics {
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+}
+
 impl Camera {
     fn from_args(a: &InferArgs) -> Result<Camera> {
+        let (intrinsics, pose) = match &a.camera {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("reading {}", path.display()))?;
+                let f: CameraFile = serde_json::from_str(&text).map_err(|e| {
+                    usage(format!(
+                        "{}: {e}; expected {{\"intrinsics\": {{\"fx\", \"fy\", \"cx\", \"cy\"}}, \"world_from_camera\": [4 rows of 4]}} as umpnet render writes",
+                        path.display()
+                    ))
+                })?;
+                let k = f.intrinsics;
+                (
+                    vec![k.fx, k.fy, k.cx, k.cy],
+                    f.world_from_camera.iter().flatten().copied().collect(),
+                )
+            }
+            None => (a.intrinsics.clone(), a.camera_pose.clone()),
+        };
         let (Ok(intrinsics), Ok(pose)) = (
-            <[f32; 4]>::try_from(a.intrinsics.as_slice()),
-            <[f32; 16]>::try_from(a.camera_pose.as_slice()),
+            <[f32; 4]>::try_from(intrinsics.as_slice()),
+            <[f32; 16]>::try_from(pose.as_slice()),
         ) else {
             return Err(usage(
-                "--intrinsics takes fx,fy,cx,cy and --camera-pose 16 numbers",
+                "--intrinsics takes fx,fy,cx,cy and --camera-pose 16 numbers (or give --camera camera.json)",
             ));
         };
         let [fx, fy, cx, cy] = intrinsics;
