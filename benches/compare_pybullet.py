@@ -126,7 +126,7 @@ def observations(urdf, repeats):
     for res in (HI, LO):
         env = umpnet_env(urdf, res, "wgpu")
         obs = env.observe()
-        scene = json.loads(env.scene)
+        scene = env.scene
         cams = {
             egl: PyBulletCamera(urdf, scene, obs["world_from_camera"], obs["intrinsics"], egl) for egl in (False, True)
         }
@@ -154,7 +154,7 @@ def episodes(case, urdf, repeats):
     pull = [0.0, -1.0, 0.0]
     times = {"pybullet_cpu": [], "pybullet_egl": [], "umpnet_python": []}
     env = umpnet_env(urdf, HI, "wgpu")
-    scene = json.loads(env.scene)
+    scene = env.scene
     obs = env.observe()
     for r in range(repeats):
         for key, egl in (("pybullet_cpu", False), ("pybullet_egl", True)):

@@ -113,7 +113,7 @@ def run(policy, split, task, episodes, seed, physics, position="learned", direct
     tally = Tally()
     while tally.episodes < episodes:
         obs = env.reset()
-        scenes = [json.loads(s) for s in env.scenes]
+        scenes = env.scenes
         if position == "learned":
             pixels = [
                 policy.position(obs["image"][i], obs["reference"][i] if task == "goal" else None) for i in range(n)

@@ -52,6 +52,29 @@ pub(crate) fn eval_err(e: EvalError) -> PyErr {
     }
 }
 
+/// A scene as a Python dict (through its JSON form, the one schema).
+fn scene_to_py<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyAny>> {
+    py.import("json")?.call_method1("loads", (scene.to_json(),))
+}
+
+/// A scene from a dict (as `.scene` gives it) or its JSON text.
+fn scene_from_py(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
+    let text: String = if let Ok(s) = obj.extract::<String>() {
+        s
+    } else if obj.is_instance_of::<PyDict>() {
+        obj.py()
+            .import("json")?
+            .call_method1("dumps", (obj,))?
+            .extract()?
+    } else {
+        return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+            "scene must be a dict (from .scene) or its JSON text, got {}",
+            obj.get_type().name()?
+        )));
+    };
+    Scene::from_json(&text).map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
 /// `category=` takes one name or a list of names.
 #[derive(FromPyObject)]
 enum Categories {
@@ -246,13 +269,15 @@ impl Env {
         })
     }
 
-    /// Starts an episode on a new scene, or on `scene` (JSON from `.scene`). Returns the observation.
+    /// Starts an episode on a new scene, or on `scene` (a dict from `.scene`,
+    /// or its JSON text). Returns the observation.
     #[pyo3(signature = (scene=None))]
-    fn reset<'py>(&mut self, py: Python<'py>, scene: Option<&str>) -> PyResult<Bound<'py, PyDict>> {
-        let scene = scene
-            .map(Scene::from_json)
-            .transpose()
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    fn reset<'py>(
+        &mut self,
+        py: Python<'py>,
+        scene: Option<Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let scene = scene.map(|s| scene_from_py(&s)).transpose()?;
         self.inner.reset_in_place(scene).map_err(eval_err)?;
         self.buffers
             .fill(py, std::slice::from_mut(&mut self.inner), true, self.copy)
@@ -266,13 +291,14 @@ impl Env {
             .fill(py, std::slice::from_mut(&mut self.inner), false, self.copy)
     }
 
-    /// The scene as JSON; `reset(scene=...)` replays it exactly.
+    /// The scene as a dict; `reset(scene=...)` replays it exactly.
     #[getter]
-    fn scene(&self) -> PyResult<String> {
-        self.inner
+    fn scene<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let s = self
+            .inner
             .scene()
-            .map(Scene::to_json)
-            .ok_or_else(|| PyRuntimeError::new_err("reset() first"))
+            .ok_or_else(|| PyRuntimeError::new_err("reset() first"))?;
+        scene_to_py(py, s)
     }
 
     /// Grasps at pixel (row, col). Returns (observation, info); info["valid"] is
@@ -415,12 +441,13 @@ impl VecEnv {
         self.envs.len()
     }
 
-    /// Resets every environment (optionally to given scenes, one JSON each).
+    /// Resets every environment (optionally to given scenes: dicts from
+    /// `.scenes`, or their JSON text, one each).
     #[pyo3(signature = (scenes=None))]
     fn reset<'py>(
         &mut self,
         py: Python<'py>,
-        scenes: Option<Vec<String>>,
+        scenes: Option<Vec<Bound<'py, PyAny>>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let n = self.envs.len();
         let scenes: Vec<Option<Scene>> = match scenes {
@@ -432,9 +459,8 @@ impl VecEnv {
             }
             Some(s) => s
                 .iter()
-                .map(|j| Scene::from_json(j).map(Some))
-                .collect::<Result<_, _>>()
-                .map_err(|e| PyValueError::new_err(e.to_string()))?,
+                .map(|j| scene_from_py(j).map(Some))
+                .collect::<PyResult<_>>()?,
             None => vec![None; n],
         };
         let envs = &mut self.envs;
@@ -448,12 +474,15 @@ impl VecEnv {
         self.buffers.fill(py, &mut self.envs, true, self.copy)
     }
 
-    /// Scenes of all environments as JSON strings.
+    /// Scenes of all environments as dicts (None before the first reset).
     #[getter]
-    fn scenes(&self) -> Vec<String> {
+    fn scenes<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
         self.envs
             .iter()
-            .map(|e| e.scene().map(Scene::to_json).unwrap_or_default())
+            .map(|e| match e.scene() {
+                Some(s) => scene_to_py(py, s),
+                None => Ok(py.None().into_bound(py)),
+            })
             .collect()
     }
 

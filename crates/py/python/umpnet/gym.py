@@ -27,7 +27,6 @@ rewrites the previous observation.
 
 from __future__ import annotations
 
-import json
 from typing import ClassVar
 
 import gymnasium as gym
@@ -83,7 +82,7 @@ class UmpnetEnv(gym.Env):
         scene = (options or {}).get("scene")
         self._obs = self._env.reset(scene)
         self._phase, self._t = 0, 0
-        self._scene = json.loads(self._env.scene)
+        self._scene = self._env.scene
         self._grasp = {}
         return self._observation(self._obs), {"scene": self._scene, "success": False, "elapsed_steps": 0}
 
