@@ -382,3 +382,33 @@ def test_readme_infer_example_runs_as_written(tmp_path):
     args[args.index("--camera") + 1] = str(tmp_path / "bad.json")
     bad = run(*args, check=False)
     assert bad.returncode == 2 and "bad.json" in bad.stderr, bad.stderr
+
+
+def test_pictures_have_captions_a_legend_and_the_goal(tmp_path):
+    """The contact sheet opens with the goal; each tile has a caption band with
+    text drawn from the step's data; a legend of the marks ends the sheet; the
+    depth picture's legend has numbers."""
+    model = str(ROOT / "models" / "umpnet-small")
+    run("goal", "--category", "Door", "--seed", "2", "--policy", "umpnet", "--model", model, "--out", str(tmp_path))
+    sheet = np.asarray(Image.open(tmp_path / "episode.png").convert("RGB")).astype(int)
+    goal = np.asarray(Image.open(tmp_path / "goal.png").convert("RGB")).astype(int)
+    h, w, _ = goal.shape
+    assert np.array_equal(sheet[:h, :w], goal), "the first tile is not the goal"
+
+    def dark(a):
+        return int((a.max(axis=-1) < 90).sum())
+
+    steps = sorted(tmp_path.glob("step_*.png"))
+    tiles = [np.asarray(Image.open(p).convert("RGB")).astype(int) for p in steps]
+    band = 3 * 20  # three caption lines below the picture, at most 20 px each
+    bands = [t[-band:] for t in tiles]
+    assert all(dark(b) > 80 for b in bands), [dark(b) for b in bands]
+    assert len({b.tobytes() for b in bands}) == len(bands), "captions do not change with the steps"
+    assert dark(goal[-band:]) > 30
+    legend = sheet[-28:]
+    assert ((legend == [255, 220, 0]).all(axis=-1)).any() and ((legend == [255, 40, 40]).all(axis=-1)).any()
+    assert dark(legend) > 100
+    run("render", "--category", "Door", "--seed", "1", "--resolution", "120x160", "--out", str(tmp_path / "r"))
+    depth = np.asarray(Image.open(tmp_path / "r" / "depth.png").convert("RGB")).astype(int)
+    numbers = depth[:, 160 + 40 :]
+    assert dark(numbers) > 15, "the depth legend has no numbers"  # white there without them

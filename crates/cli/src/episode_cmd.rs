@@ -79,7 +79,23 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         for (t, p) in pictures.iter().enumerate() {
             images::save(p, &out.join(format!("step_{t:02}.png")))?;
         }
-        images::save(&contact_sheet(&pictures), &out.join("episode.png"))?;
+        // The goal task's sheet opens with the goal, so each step can be set beside it.
+        let mut tiles = Vec::with_capacity(pictures.len() + 1);
+        if let Some(goal) = &scene.goal {
+            let mut env = umpnet_sim::env::SimEnv::new(
+                scene.clone(),
+                camera.clone(),
+                create_renderer(a.renderer)?,
+            )?;
+            if let Some(f) = env.render_goal()? {
+                let value = goal.joints.get(goal.joint).copied();
+                let tile = goal_picture(&f, value);
+                images::save(&tile, &out.join("goal.png"))?;
+                tiles.push(tile);
+            }
+        }
+        tiles.extend(pictures.iter().cloned());
+        images::save(&contact_sheet(&tiles), &out.join("episode.png"))?;
         write_gif(&pictures, &out.join("episode.gif"))?;
     }
     if ctx.json {
@@ -199,6 +215,24 @@ fn print_axis_estimate(ep: &umpnet_eval::episode::Episode) -> Result<()> {
     Ok(())
 }
 
+/// Candidate arrows drawn per step: the most promising ones, not a blur of all.
+const SHOWN_CANDIDATES: usize = 8;
+const GRASP: [u8; 3] = [255, 40, 40];
+const EXECUTED: [u8; 3] = [255, 220, 0];
+const FORWARD: [u8; 3] = [40, 200, 60];
+const BACKWARD: [u8; 3] = [230, 60, 200];
+const NO_MOVE: [u8; 3] = [160, 160, 160];
+
+fn aot_color(aot: Option<&i8>) -> [u8; 3] {
+    match aot {
+        Some(1) => FORWARD,
+        Some(-1) => BACKWARD,
+        _ => NO_MOVE,
+    }
+}
+
+/// One tile: the frame, the grasp, the executed direction and the top
+/// candidates, with a caption saying what happened and what was predicted.
 fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> RgbImage {
     let mut img = images::color_image(f);
     let scale = f.width as f32 / 320.0;
@@ -207,22 +241,47 @@ fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> 
         &mut img,
         (pixel.1 as f32 + 0.5, pixel.0 as f32 + 0.5),
         4.0 * scale.max(0.5),
-        [255, 40, 40],
+        GRASP,
     );
+    let mut caption = vec![match step {
+        None => format!("start: grasp at pixel ({}, {})", pixel.0, pixel.1),
+        Some(s) => format!(
+            "step {t}: joint {:.2} -> {:.2}",
+            s.record.labels.joint_before, s.record.labels.joint_after
+        ),
+    }];
     if let Some(s) = step {
         // Arrows start where the gripper was when the action began.
         let from = Vec3::from(s.gripper_in_world);
+        let mut predicted = None;
         if let Some(c) = &s.candidates {
             let maxd = c.distance.iter().copied().fold(1e-6f32, f32::max);
-            for (k, d) in c.directions.iter().enumerate() {
-                let color = match c.aot.get(k) {
-                    Some(1) => [40, 200, 60],
-                    Some(-1) => [230, 60, 200],
-                    _ => [160, 160, 160],
+            let mut order: Vec<usize> = (0..c.directions.len()).collect();
+            order.sort_by(|&a, &b| {
+                let d = |k: usize| c.distance.get(k).copied().unwrap_or(0.0);
+                d(b).total_cmp(&d(a))
+            });
+            for &k in order.iter().take(SHOWN_CANDIDATES) {
+                let (Some(d), Some(dist)) = (c.directions.get(k), c.distance.get(k)) else {
+                    continue;
                 };
-                let length = 0.2 * c.distance.get(k).copied().unwrap_or(0.0).max(0.0) / maxd;
-                images::draw_arrow(&mut img, f, from, Vec3::from(*d), length, color, 1);
+                let length = 0.2 * dist.max(0.0) / maxd;
+                images::draw_arrow(
+                    &mut img,
+                    f,
+                    from,
+                    Vec3::from(*d),
+                    length,
+                    aot_color(c.aot.get(k)),
+                    1,
+                );
             }
+            // The executed direction's own prediction.
+            predicted = c
+                .directions
+                .iter()
+                .position(|d| *d == s.record.direction)
+                .and_then(|k| Some((*c.distance.get(k)?, *c.aot.get(k)?)));
         }
         images::draw_arrow(
             &mut img,
@@ -230,14 +289,33 @@ fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> 
             from,
             Vec3::from(s.record.direction),
             0.25,
-            [255, 220, 0],
+            EXECUTED,
             thick + 1,
         );
+        // The network's AoT is relative to its reference image (the goal, in
+        // the goal task); the simulator's labels to the episode's start.
+        caption.push(match predicted {
+            Some((d, aot)) => format!("predicted d {d:.2}, AoT {aot:+} vs reference"),
+            None => "predicted: -".to_owned(),
+        });
+        caption.push(format!(
+            "actual d {:.2}, AoT {:+} vs start",
+            s.record.labels.r_dist, s.record.labels.aot
+        ));
+    } else {
+        caption.extend([String::new(), String::new()]);
     }
-    let _ = t;
-    images::enlarge(&img, 320)
+    crate::text::with_caption(&images::enlarge(&img, 320), &caption)
 }
 
+/// The goal observation as a tile, captioned like the steps.
+fn goal_picture(f: &Frame, goal_value: Option<f32>) -> RgbImage {
+    let img = images::enlarge(&images::color_image(f), 320);
+    let line = goal_value.map_or(String::new(), |v| format!("joint at the goal {v:.2}"));
+    crate::text::with_caption(&img, &["goal".to_owned(), line, String::new()])
+}
+
+/// The tiles in a grid, then a legend of the marks.
 fn contact_sheet(pics: &[RgbImage]) -> RgbImage {
     let Some(first) = pics.first() else {
         return RgbImage::new(1, 1);
@@ -245,7 +323,12 @@ fn contact_sheet(pics: &[RgbImage]) -> RgbImage {
     let cols = (pics.len() as f32).sqrt().ceil() as u32;
     let rows = (pics.len() as u32).div_ceil(cols);
     let (w, h) = (first.width(), first.height());
-    let mut sheet = RgbImage::from_pixel(cols * w, rows * h, image::Rgb([255, 255, 255]));
+    let legend_h = 28;
+    let mut sheet = RgbImage::from_pixel(
+        (cols * w).max(640),
+        rows * h + legend_h,
+        image::Rgb([255, 255, 255]),
+    );
     for (i, p) in pics.iter().enumerate() {
         image::imageops::overlay(
             &mut sheet,
@@ -253,6 +336,24 @@ fn contact_sheet(pics: &[RgbImage]) -> RgbImage {
             ((i as u32 % cols) * w) as i64,
             ((i as u32 / cols) * h) as i64,
         );
+    }
+    let y = (rows * h) as f32 + 14.0;
+    let mut x = 8.0;
+    for (color, label, arrow) in [
+        (GRASP, "grasp", false),
+        (EXECUTED, "executed", true),
+        (FORWARD, "candidate: forward", true),
+        (BACKWARD, "backward", true),
+        (NO_MOVE, "no change", true),
+    ] {
+        if arrow {
+            images::draw_line(&mut sheet, (x, y), (x + 18.0, y), color, 3);
+        } else {
+            images::draw_disc(&mut sheet, (x + 8.0, y), 5.0, color);
+        }
+        x += 24.0;
+        crate::text::draw(&mut sheet, x, y - 8.0, 14.0, label, [30, 30, 30]);
+        x += crate::text::width(label, 14.0) + 16.0;
     }
     sheet
 }

@@ -40,8 +40,10 @@ pub fn depth_image(f: &Frame) -> (RgbImage, f32, f32) {
     let valid: Vec<f32> = f.depth.iter().copied().filter(|d| *d > 0.0).collect();
     let lo = valid.iter().copied().fold(f32::INFINITY, f32::min);
     let hi = valid.iter().copied().fold(0.0f32, f32::max);
-    let legend_w = 40.max(f.width / 10);
-    let mut img = RgbImage::new(f.width + legend_w, f.height);
+    // The legend bar, then room for its numbers (metres) beside it.
+    let bar_w = 40.max(f.width / 10);
+    let legend_w = bar_w + 56;
+    let mut img = RgbImage::from_pixel(f.width + legend_w, f.height, Rgb([255, 255, 255]));
     for r in 0..f.height {
         for c in 0..f.width {
             let d = f.depth.get(f.index(r, c)).copied().unwrap_or(0.0);
@@ -56,14 +58,24 @@ pub fn depth_image(f: &Frame) -> (RgbImage, f32, f32) {
         let t = r as f32 / (f.height - 1).max(1) as f32;
         let d = lo + t * (hi - lo);
         let tick = ((d / 0.25).round() * 0.25 - d).abs() < (hi - lo) / f.height as f32;
-        for c in f.width + 4..f.width + legend_w {
-            let px = if tick && c > f.width + legend_w / 2 {
+        for c in f.width + 4..f.width + bar_w {
+            let px = if tick && c > f.width + bar_w / 2 {
                 [255, 255, 255]
             } else {
                 colormap(t)
             };
             img.put_pixel(c, r, Rgb(px));
         }
+    }
+    if valid.is_empty() {
+        return (img, lo, hi);
+    }
+    // Near at the top, far at the bottom, and the middle.
+    let size = (f.height as f32 / 20.0).clamp(10.0, 16.0);
+    let x = (f.width + bar_w + 4) as f32;
+    let bottom = f.height as f32 - size - 2.0;
+    for (y, d) in [(1.0, lo), (bottom / 2.0, 0.5 * (lo + hi)), (bottom, hi)] {
+        crate::text::draw(&mut img, x, y, size, &format!("{d:.2} m"), [30, 30, 30]);
     }
     (img, lo, hi)
 }

@@ -8,6 +8,7 @@ mod objects_cmd;
 mod outdir;
 mod policies;
 mod render_cmd;
+mod text;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
