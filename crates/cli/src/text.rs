@@ -4,7 +4,8 @@ use ab_glyph::{Font, FontArc, PxScale, ScaleFont};
 use image::{Rgb, RgbImage};
 use std::sync::OnceLock;
 
-const FONT_PATHS: &[&str] = &[
+/// Where DejaVu Sans is found on Debian and other distributions (curve.png uses it too).
+pub const FONT_PATHS: &[&str] = &[
     "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
     "/usr/share/fonts/TTF/DejaVuSans.ttf",
     "/usr/share/fonts/dejavu/DejaVuSans.ttf",

@@ -8,12 +8,7 @@ fn register_font() -> Result<()> {
     use std::sync::OnceLock;
     static FONT: OnceLock<std::result::Result<(), String>> = OnceLock::new();
     FONT.get_or_init(|| {
-        let paths = [
-            "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-            "/usr/share/fonts/TTF/DejaVuSans.ttf",
-            "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-        ];
-        let bytes = paths
+        let bytes = crate::text::FONT_PATHS
             .iter()
             .find_map(|p| std::fs::read(p).ok())
             .ok_or("no DejaVuSans.ttf found (apt-get install fonts-dejavu-core)")?;
