@@ -304,3 +304,18 @@ def test_periodic_evaluation_logs_the_diagnostics(tmp_path):
     ):
         assert tag in tags, sorted(tags)
     assert any(t.startswith("eval/goal/") for t in tags), sorted(tags)
+
+
+def test_random_grasps_follow_the_released_rule():
+    # Half the pixels on the floor (z = 0), half on an object 0.2 m up. A
+    # random pixel is kept off the floor always, on it with probability 0.1,
+    # so the floor's share is 0.5 * 0.1 / (0.5 + 0.5 * 0.1) = 1/11.
+    image = np.zeros((8, 10, 10), np.float32)
+    image[:, :5, 2] = 0.2
+    image[:, 5:, 2] = 0.001  # below the 5 mm clearance: still floor
+    rng = np.random.default_rng(0)
+    picks = np.array([train.random_pixel(image, rng) for _ in range(20_000)])
+    on_floor = (picks % 10 >= 5).mean()
+    assert abs(on_floor - 1 / 11) < 0.01, on_floor
+    # Every pixel can be chosen, the floor's too.
+    assert np.bincount(picks, minlength=80).min() > 0

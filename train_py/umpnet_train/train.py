@@ -33,7 +33,7 @@ from .export import export_model
 from .models import UMPNet
 from .replay import DenseReplay, Replay
 
-OBJECT_SEGMENT = 1 << 16  # segment ids of object links start here
+FLOOR_CLEARANCE = 0.005  # m: the released code's "above the floor" for random grasps
 # The categories training sees, in the paper's order (defined once, in Rust).
 TRAIN_CATEGORIES = [name for name, split, _ in umpnet.categories() if split == "train"]
 
@@ -69,17 +69,29 @@ def to_long(x: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(x, dtype=np.int64)).to(DEVICE)
 
 
+def random_pixel(image: np.ndarray, rng: np.random.Generator) -> int:
+    """The released code's exploratory grasp: a uniformly random pixel, kept if
+    its point is above the floor (z > 5 mm), else kept with probability 0.1.
+    The floor pixels it keeps are the position net's negatives on the floor."""
+    z = image[..., 2].ravel()
+    for _ in range(10_000):
+        k = int(rng.integers(z.size))
+        if z[k] > FLOOR_CLEARANCE or rng.random() < 0.1:
+            return k
+    return int(rng.integers(z.size))  # unreachable in practice: 0.9**10000
+
+
 @torch.no_grad()
 def choose_positions(model, obs, eps, rng):
-    """Greedy: best affordance among pixels with depth; else a random object pixel."""
+    """Greedy: best affordance among pixels with depth; with probability `eps`
+    (or when nothing has depth) a random pixel by the released code's rule."""
     n, _, w, _ = obs["image"].shape
     prob = torch.softmax(model.position(to_torch(obs["image"])), dim=1)[:, 1].cpu().numpy()
     prob[obs["image"][..., 9] <= 0] = -1.0
     pixels = np.zeros((n, 2), np.int64)
     for i in range(n):
-        mask = np.flatnonzero(obs["segmentation"][i].ravel() >= OBJECT_SEGMENT)
-        if rng.random() < eps and len(mask):
-            k = rng.choice(mask)
+        if rng.random() < eps or prob[i].max() < 0:
+            k = random_pixel(obs["image"][i], rng)
         else:
             k = int(prob[i].argmax())
         pixels[i] = divmod(int(k), w)
@@ -311,6 +323,13 @@ def parse_args(argv=None):
     p.add_argument("--out", type=Path, required=True, help="run directory: checkpoints and TensorBoard logs")
     p.add_argument("--export", type=Path, help="write the final model package here")
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
+    p.add_argument(
+        "--restart-lr",
+        type=float,
+        metavar="LR",
+        help="with --resume: set the learning rate to LR from the resumed epoch on (the step decay "
+        "continues from there); for fine-tuning after a change to the simulator",
+    )
     p.add_argument("--variant", choices=["umpnet", "single-step", "aot-only", "signed-dist", "where2act", "inverse"])
     p.add_argument("--epochs", type=int)
     p.add_argument("--seed", type=int)
@@ -427,6 +446,9 @@ def main(argv=None) -> int:
     sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_decay_every, gamma=cfg.lr_decay)
     start, wall_before = 0, 0.0
     ckpt_path = out / "checkpoint.pt"
+    if args.restart_lr is not None and not (args.resume and 0 < args.restart_lr < 1):
+        print(f"error: --restart-lr {args.restart_lr}: needs --resume and a rate in (0, 1)", file=sys.stderr)
+        return 2
     if args.resume:
         if not ckpt_path.is_file():
             print(f"error: --resume: {ckpt_path} does not exist", file=sys.stderr)
@@ -445,6 +467,10 @@ def main(argv=None) -> int:
         model.load_state_dict(ck["model"])
         opt.load_state_dict(ck["optimizer"])
         sched.load_state_dict(ck["scheduler"])
+        if args.restart_lr is not None:
+            for group in opt.param_groups:
+                group["lr"] = args.restart_lr
+            print(f"learning rate restarted at {args.restart_lr:g}")
         rng.bit_generator.state = ck["numpy_rng"]
         torch.set_rng_state(ck["torch_rng"])
         start, wall_before = ck["epoch"], ck["provenance"]["wall_seconds"]

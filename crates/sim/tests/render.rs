@@ -72,6 +72,12 @@ fn wgpu_matches_cpu_reference_on_every_category() {
                 }
             }
             assert!(obj > 100, "{c}: only {obj} object pixels in view");
+            // The paper's floor is 200 m across: from its camera every pixel
+            // sees the floor or the object, and no far edge or background.
+            for f in [&a, &b] {
+                let empty = f.depth.iter().filter(|&&d| d <= 0.0).count();
+                assert_eq!(empty, 0, "{c} scene {k}: {empty} pixels see no floor");
+            }
             let depth_frac = depth_ok as f64 / obj as f64;
             let seg_frac = seg_diff as f64 / a.depth.len() as f64;
             worst_depth = worst_depth.min(depth_frac);

@@ -170,9 +170,14 @@ pub(crate) fn shade(color: [f32; 3], normal: Vec3) -> [u8; 3] {
 pub(crate) const PLANE_COLOR: [f32; 3] = [0.62, 0.6, 0.58];
 pub(crate) const GRIPPER_COLOR: [f32; 3] = [0.15, 0.15, 0.18];
 
+/// Side of the square floor, m: the paper's plane (assets/plane100.obj) is
+/// 200 m across, so from the fixed camera the floor fills every pixel that
+/// the object does not, and no far edge appears in the image.
+pub const FLOOR_SIZE: f32 = 200.0;
+
 /// The floor plane as a mesh in world frame (visual only).
 pub fn plane_mesh(part: usize) -> RenderMesh {
-    let mut m = TriMesh::cuboid(Vec3::new(8.0, 8.0, 0.0));
+    let mut m = TriMesh::cuboid(Vec3::new(FLOOR_SIZE, FLOOR_SIZE, 0.0));
     m.triangles
         .retain(|t| t.iter().all(|&i| m.positions[i as usize].z >= 0.0));
     RenderMesh {
