@@ -31,6 +31,7 @@ impl<'py, T: Element, D: numpy::ndarray::Dimension> FromPyObject<'py> for Arr<'p
     }
 }
 
+pub type Arr1<'py, T> = Arr<'py, T, numpy::ndarray::Ix1>;
 pub type Arr2<'py, T> = Arr<'py, T, numpy::ndarray::Ix2>;
 pub type Arr3<'py, T> = Arr<'py, T, numpy::ndarray::Ix3>;
 pub type Arr4<'py, T> = Arr<'py, T, numpy::ndarray::Ix4>;

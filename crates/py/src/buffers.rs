@@ -78,7 +78,19 @@ impl ObsBuffers {
         with_reference: bool,
         copy: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        if envs.len() != self.count() {
+        self.fill_masked(py, envs, &vec![with_reference; envs.len()], copy)
+    }
+
+    /// `fill`, writing the reference only of the environments whose entry in
+    /// `reference` is true (those that were just reset).
+    pub fn fill_masked<'py>(
+        &self,
+        py: Python<'py>,
+        envs: &mut [TrainEnv],
+        reference: &[bool],
+        copy: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        if envs.len() != self.count() || reference.len() != envs.len() {
             return Err(err(format!(
                 "{} environments for buffers of {}",
                 envs.len(),
@@ -89,19 +101,20 @@ impl ObsBuffers {
         let metas: Vec<ObsMeta> = {
             let mut image = self.image.bind(py).try_readwrite().map_err(err)?;
             let mut seg = self.segmentation.bind(py).try_readwrite().map_err(err)?;
-            let mut reference = self.reference.bind(py).try_readwrite().map_err(err)?;
-            let (image, seg, reference) = (
+            let mut reference_buffer = self.reference.bind(py).try_readwrite().map_err(err)?;
+            let (image, seg, reference_buffer) = (
                 image.as_slice_mut().map_err(err)?,
                 seg.as_slice_mut().map_err(err)?,
-                reference.as_slice_mut().map_err(err)?,
+                reference_buffer.as_slice_mut().map_err(err)?,
             );
             let pixels = self.pixels;
             py.detach(|| {
                 envs.par_iter_mut()
                     .zip(image.par_chunks_mut(per_image))
                     .zip(seg.par_chunks_mut(pixels))
-                    .zip(reference.par_chunks_mut(per_image))
-                    .map(|(((e, img), s), r)| {
+                    .zip(reference_buffer.par_chunks_mut(per_image))
+                    .zip(reference.par_iter())
+                    .map(|((((e, img), s), r), &with_reference)| {
                         if with_reference {
                             e.reference_into(r)?;
                         }

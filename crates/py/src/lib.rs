@@ -7,11 +7,10 @@
     reason = "every index follows a shape check of the array it indexes, which raises ValueError otherwise"
 )]
 use arrays::{Arr2, Arr3, Arr4};
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray3, PyReadonlyArray4, PyUntypedArrayMethods};
+use numpy::{PyReadonlyArray3, PyReadonlyArray4, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 use umpnet_eval::EvalError;
@@ -24,7 +23,7 @@ use umpnet_sim::scene::{Scene, Task};
 
 /// Bounds on what a caller may ask for: far above any machine's use, far below
 /// what exhausts memory or threads.
-const MAX_ENVS: usize = 4096;
+pub(crate) const MAX_ENVS: usize = 4096;
 const MAX_THREADS: usize = 1024;
 
 fn runtime_err(e: impl std::fmt::Display) -> PyErr {
@@ -53,12 +52,12 @@ pub(crate) fn eval_err(e: EvalError) -> PyErr {
 }
 
 /// A scene as a Python dict (through its JSON form, the one schema).
-fn scene_to_py<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyAny>> {
+pub(crate) fn scene_to_py<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyAny>> {
     py.import("json")?.call_method1("loads", (scene.to_json(),))
 }
 
 /// A scene from a dict (as `.scene` gives it) or its JSON text.
-fn scene_from_py(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
+pub(crate) fn scene_from_py(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
     let text: String = if let Ok(s) = obj.extract::<String>() {
         s
     } else if obj.is_instance_of::<PyDict>() {
@@ -77,7 +76,7 @@ fn scene_from_py(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
 
 /// `category=` takes one name or a list of names.
 #[derive(FromPyObject)]
-enum Categories {
+pub(crate) enum Categories {
     One(String),
     Many(Vec<String>),
 }
@@ -92,7 +91,7 @@ impl Categories {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn make_config(
+pub(crate) fn make_config(
     category: Option<Categories>,
     split: &str,
     resolution: (u32, u32),
@@ -198,7 +197,7 @@ fn position_info<'py>(py: Python<'py>, i: &PositionInfo) -> PyResult<Bound<'py, 
 }
 
 /// (row, col), [x, y, z] or None.
-fn scripted_to_py(py: Python<'_>, a: ScriptedAction) -> PyResult<Py<PyAny>> {
+pub(crate) fn scripted_to_py(py: Python<'_>, a: ScriptedAction) -> PyResult<Py<PyAny>> {
     Ok(match a {
         ScriptedAction::Pixel(r, c) => (r, c).into_pyobject(py)?.into_any().unbind(),
         ScriptedAction::Direction(d) => d.to_vec().into_pyobject(py)?.into_any().unbind(),
@@ -206,7 +205,7 @@ fn scripted_to_py(py: Python<'_>, a: ScriptedAction) -> PyResult<Py<PyAny>> {
     })
 }
 
-fn parse_direction(v: Vec<f32>) -> PyResult<[f32; 3]> {
+pub(crate) fn parse_direction(v: Vec<f32>) -> PyResult<[f32; 3]> {
     let d: [f32; 3] = v.try_into().map_err(|v: Vec<f32>| {
         PyValueError::new_err(format!("direction must have 3 components, got {}", v.len()))
     })?;
@@ -379,313 +378,6 @@ impl Env {
     }
 }
 
-/// n environments stepped in parallel Rust threads (GIL released); env i is
-/// seeded `seed + i`. Results are stacked into one numpy array per field.
-///
-/// Like `Env`, observations are buffers rewritten in place by every step
-/// unless `copy=True`.
-#[pyclass(module = "umpnet")]
-struct VecEnv {
-    envs: Vec<TrainEnv>,
-    buffers: buffers::ObsBuffers,
-    copy: bool,
-}
-
-#[pymethods]
-impl VecEnv {
-    #[new]
-    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", copy=false))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        py: Python<'_>,
-        n: usize,
-        category: Option<Categories>,
-        split: &str,
-        seed: u64,
-        resolution: (u32, u32),
-        task: &str,
-        object_dir: Option<PathBuf>,
-        renderer: &str,
-        dataset_seed: u64,
-        physics: &str,
-        copy: bool,
-    ) -> PyResult<Self> {
-        if !(1..=MAX_ENVS).contains(&n) {
-            return Err(PyValueError::new_err(format!(
-                "n = {n}: expected 1 to {MAX_ENVS} environments"
-            )));
-        }
-        let cfg = make_config(
-            category,
-            split,
-            resolution,
-            task,
-            object_dir,
-            renderer,
-            dataset_seed,
-            physics,
-        )?;
-        let envs = (0..n)
-            .map(|i| TrainEnv::new(cfg.clone(), seed + i as u64))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(eval_err)?;
-        let (h, w) = (resolution.0 as usize, resolution.1 as usize);
-        Ok(Self {
-            envs,
-            buffers: buffers::ObsBuffers::new(py, Some(n), h, w)?,
-            copy,
-        })
-    }
-
-    fn __len__(&self) -> usize {
-        self.envs.len()
-    }
-
-    /// Resets every environment (optionally to given scenes: dicts from
-    /// `.scenes`, or their JSON text, one each).
-    #[pyo3(signature = (scenes=None))]
-    fn reset<'py>(
-        &mut self,
-        py: Python<'py>,
-        scenes: Option<Vec<Bound<'py, PyAny>>>,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let n = self.envs.len();
-        let scenes: Vec<Option<Scene>> = match scenes {
-            Some(s) if s.len() != n => {
-                return Err(PyValueError::new_err(format!(
-                    "{} scenes for {n} environments",
-                    s.len()
-                )));
-            }
-            Some(s) => s
-                .iter()
-                .map(|j| scene_from_py(j).map(Some))
-                .collect::<PyResult<_>>()?,
-            None => vec![None; n],
-        };
-        let envs = &mut self.envs;
-        py.detach(|| {
-            envs.par_iter_mut()
-                .zip(scenes)
-                .map(|(e, s)| e.reset_in_place(s))
-                .collect::<Result<Vec<_>, _>>()
-        })
-        .map_err(eval_err)?;
-        self.buffers.fill(py, &mut self.envs, true, self.copy)
-    }
-
-    /// Scenes of all environments as dicts (None before the first reset).
-    #[getter]
-    fn scenes<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
-        self.envs
-            .iter()
-            .map(|e| match e.scene() {
-                Some(s) => scene_to_py(py, s),
-                None => Ok(py.None().into_bound(py)),
-            })
-            .collect()
-    }
-
-    /// pixels: int array n x 2 (row, col). Returns (observations, info) with info["valid"] a bool array.
-    fn step_position<'py>(
-        &mut self,
-        py: Python<'py>,
-        pixels: Arr2<'py, i64>,
-    ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
-        let pixels = pixels.0;
-        let n = self.envs.len();
-        if pixels.shape() != [n, 2] {
-            return Err(PyValueError::new_err(format!(
-                "pixels has shape {:?}, expected ({n}, 2)",
-                pixels.shape()
-            )));
-        }
-        // Checked, not cast: 2**32 + r must not wrap round to r.
-        let Ok(p) = pixels
-            .as_array()
-            .iter()
-            .map(|&v| u32::try_from(v))
-            .collect::<Result<Vec<u32>, _>>()
-        else {
-            return Err(PyValueError::new_err(
-                "pixels must be non-negative and inside the image",
-            ));
-        };
-        let envs = &mut self.envs;
-        let out = py
-            .detach(|| {
-                envs.par_iter_mut()
-                    .enumerate()
-                    .map(|(i, e)| e.step_position_in_place(p[2 * i], p[2 * i + 1]))
-                    .collect::<Result<Vec<_>, _>>()
-            })
-            .map_err(eval_err)?;
-        let infos = out;
-        let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
-        let info = PyDict::new(py);
-        info.set_item(
-            "valid",
-            PyArray1::from_vec(py, infos.iter().map(|i| i.valid).collect::<Vec<_>>()),
-        )?;
-        info.set_item(
-            "joint",
-            infos
-                .iter()
-                .map(|i| i.joint.map(|j| j as i64).unwrap_or(-1))
-                .collect::<Vec<_>>(),
-        )?;
-        // (n, 2) limits and (n,) thresholds of the grasped joints; NaN where no grasp.
-        let limits: Vec<f32> = infos
-            .iter()
-            .flat_map(|i| i.limits.unwrap_or([f32::NAN; 2]))
-            .collect();
-        info.set_item("limits", PyArray1::from_vec(py, limits).reshape([n, 2])?)?;
-        info.set_item(
-            "threshold",
-            PyArray1::from_vec(
-                py,
-                infos
-                    .iter()
-                    .map(|i| i.threshold.unwrap_or(f32::NAN))
-                    .collect::<Vec<_>>(),
-            ),
-        )?;
-        Ok((obs, info))
-    }
-
-    /// directions: float array n x 3. Environments without a valid grasp are
-    /// skipped (info["active"] False, labels zero). Returns (observations, labels, info).
-    fn step_direction<'py>(
-        &mut self,
-        py: Python<'py>,
-        directions: Arr2<'py, f32>,
-    ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>, Bound<'py, PyDict>)> {
-        let directions = directions.0;
-        let n = self.envs.len();
-        if directions.shape() != [n, 3] {
-            return Err(PyValueError::new_err(format!(
-                "directions has shape {:?}, expected ({n}, 3)",
-                directions.shape()
-            )));
-        }
-        let a = directions.as_array();
-        let dirs: Vec<[f32; 3]> = (0..n).map(|i| [a[[i, 0]], a[[i, 1]], a[[i, 2]]]).collect();
-        for (i, d) in dirs.iter().enumerate() {
-            if self.envs[i].grasped_joint().is_some() {
-                parse_direction(d.to_vec())
-                    .map_err(|e| PyValueError::new_err(format!("row {i}: {e}")))?;
-            }
-        }
-        let envs = &mut self.envs;
-        let out = py
-            .detach(|| {
-                envs.par_iter_mut()
-                    .zip(&dirs)
-                    .map(|(e, d)| {
-                        if e.grasped_joint().is_some() {
-                            e.step_direction_in_place(*d).map(Some)
-                        } else {
-                            Ok(None)
-                        }
-                    })
-                    .collect::<Result<Vec<_>, _>>()
-            })
-            .map_err(eval_err)?;
-        let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
-        let labels = PyDict::new(py);
-        let get = |f: &dyn Fn(&StepLabels) -> f32| -> Vec<f32> {
-            out.iter()
-                .map(|l| l.as_ref().map(f).unwrap_or(0.0))
-                .collect()
-        };
-        labels.set_item("r_dist", PyArray1::from_vec(py, get(&|l| l.r_dist)))?;
-        labels.set_item(
-            "aot",
-            PyArray1::from_vec(
-                py,
-                out.iter()
-                    .map(|l| l.as_ref().map(|l| l.aot as i64).unwrap_or(0))
-                    .collect::<Vec<_>>(),
-            ),
-        )?;
-        labels.set_item(
-            "moved",
-            PyArray1::from_vec(
-                py,
-                out.iter()
-                    .map(|l| l.as_ref().is_some_and(|l| l.moved))
-                    .collect::<Vec<_>>(),
-            ),
-        )?;
-        labels.set_item(
-            "train_aot",
-            PyArray1::from_vec(
-                py,
-                out.iter()
-                    .map(|l| l.as_ref().map(|l| l.train.aot as i64).unwrap_or(0))
-                    .collect::<Vec<_>>(),
-            ),
-        )?;
-        let flag = |f: &dyn Fn(&StepLabels) -> bool| -> Vec<bool> {
-            out.iter().map(|l| l.as_ref().is_some_and(f)).collect()
-        };
-        labels.set_item(
-            "train_moved",
-            PyArray1::from_vec(py, flag(&|l| l.train.moved)),
-        )?;
-        let info = PyDict::new(py);
-        info.set_item(
-            "active",
-            PyArray1::from_vec(py, out.iter().map(|l| l.is_some()).collect::<Vec<_>>()),
-        )?;
-        info.set_item(
-            "joint_after",
-            PyArray1::from_vec(py, get(&|l| l.joint_after)),
-        )?;
-        info.set_item(
-            "suction_lost",
-            PyArray1::from_vec(py, flag(&|l| l.suction_lost)),
-        )?;
-        info.set_item(
-            "reached_boundary",
-            PyArray1::from_vec(py, flag(&|l| l.train.reached_boundary)),
-        )?;
-        info.set_item(
-            "reached_init",
-            PyArray1::from_vec(py, flag(&|l| l.train.reached_init)),
-        )?;
-        Ok((obs, labels, info))
-    }
-
-    /// Dense labels for every environment: `directions` is float32 (n, k, 3);
-    /// returns (n, k) arrays r_dist, aot, moved, joint_after and `active` (n,),
-    /// False where an environment holds no grasp (its labels are zero). The
-    /// environments' states do not change.
-    fn probe_directions<'py>(
-        &self,
-        py: Python<'py>,
-        directions: Arr3<'py, f32>,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let directions = directions.0;
-        let dirs = probe::directions(&directions, self.envs.len())?;
-        let k = directions.shape()[1];
-        let labels = probe::probe_all(py, &self.envs, &dirs)?;
-        probe::labels_dict(py, &labels, k)
-    }
-
-    /// Scripted actions for every environment (see Env.scripted_action).
-    fn scripted_actions(&mut self, py: Python<'_>, policy: &str) -> PyResult<Vec<Py<PyAny>>> {
-        let mut out = Vec::with_capacity(self.envs.len());
-        for e in &mut self.envs {
-            out.push(scripted_to_py(
-                py,
-                e.scripted_action(policy).map_err(eval_err)?,
-            )?);
-        }
-        Ok(out)
-    }
-}
-
 /// The Rust policy runtime on a model package.
 #[pyclass(module = "umpnet")]
 struct Policy {
@@ -835,6 +527,7 @@ mod arrays;
 mod buffers;
 mod physics;
 mod probe;
+mod vec_env;
 
 /// The object categories in the paper's order: (name, split, step budget),
 /// split "train" or "test" (the categories held out from training).
@@ -854,7 +547,7 @@ fn _umpnet(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(categories, m)?)?;
     m.add_class::<Env>()?;
     m.add_class::<physics::Articulation>()?;
-    m.add_class::<VecEnv>()?;
+    m.add_class::<vec_env::VecEnv>()?;
     m.add_class::<Policy>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

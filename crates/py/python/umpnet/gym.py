@@ -32,14 +32,34 @@ from typing import ClassVar
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
 
-from ._umpnet import Env, categories
+from ._umpnet import Env, VecEnv, categories
 
 DELTA = 0.15
 
 # The paper's per-category budgets of direction actions (defined once, in Rust).
 BUDGETS = {name: budget for name, _, budget in categories()}
 MAX_BUDGET = max(BUDGETS.values())
+
+
+def score(task, before, after, start, farthest, lower, upper, threshold, goal):
+    """Reward and success of direction steps per the paper's protocol, for
+    scalars or arrays alike: (reward in units of delta, success, the new
+    farthest distance from the start). Success ends the episode."""
+    if task == "exploration":
+        distance = np.abs(after - start)
+        reward = np.maximum(0.0, distance - farthest) / DELTA
+        at_limit = (distance > threshold) & ((after < lower + threshold) | (after > upper - threshold))
+        return reward, at_limit, np.maximum(farthest, distance)
+    reward = (np.abs(before - goal) - np.abs(after - goal)) / DELTA
+    reached = (
+        (np.abs(after - goal) < threshold)
+        | ((before > goal) & (after < goal + threshold))
+        | ((before < goal) & (after > goal - threshold))
+    )
+    return reward, reached, farthest
 
 
 class UmpnetEnv(gym.Env):
@@ -52,20 +72,26 @@ class UmpnetEnv(gym.Env):
         env_kwargs.setdefault("copy", True)
         self._kwargs = dict(task=task, resolution=resolution, **env_kwargs)
         self._env = Env(seed=self._seed, **self._kwargs)
+        self.observation_space, self.action_space = self.spaces(h, w)
+        self._obs = None
+        self._phase = 0
+        self._t = 0
+        self._scene = {}
+        self._grasp = {}
+
+    @staticmethod
+    def spaces(h, w):
+        """(observation space, action space) of one environment at h x w."""
         image = spaces.Box(-np.inf, np.inf, shape=(h, w, 10), dtype=np.float32)
-        self.observation_space = spaces.Dict({"image": image, "reference": image, "phase": spaces.Discrete(2)})
-        self.action_space = spaces.Dict(
+        observation = spaces.Dict({"image": image, "reference": image, "phase": spaces.Discrete(2)})
+        action = spaces.Dict(
             {
                 "phase": spaces.Discrete(2),
                 "pixel": spaces.MultiDiscrete([h, w]),
                 "direction": spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32),
             }
         )
-        self._obs = None
-        self._phase = 0
-        self._t = 0
-        self._scene = {}
-        self._grasp = {}
+        return observation, action
 
     def _observation(self, obs):
         return {"image": obs["image"], "reference": obs["reference"], "phase": self._phase}
@@ -114,21 +140,22 @@ class UmpnetEnv(gym.Env):
     def _score(self, info):
         """(reward, success, terminated) of one direction step, per the paper's protocol."""
         g = self._grasp
-        before, after = info["joint_before"], info["joint_after"]
-        lower, upper = g["limits"]
-        thr = g["threshold"]
-        if self.task == "exploration":
-            distance = abs(after - g["start"])
-            reward = max(0.0, distance - g["farthest"]) / DELTA
-            g["farthest"] = max(g["farthest"], distance)
-            at_limit = distance > thr and (after < lower + thr or after > upper - thr)
-            return reward, bool(at_limit), bool(at_limit)
-        goal = self._scene["goal"]["joints"][g["joint"]]
-        reward = (abs(before - goal) - abs(after - goal)) / DELTA
-        reached = (
-            abs(after - goal) < thr or (before > goal and after < goal + thr) or (before < goal and after > goal - thr)
+        # The scene's goal is an f32 written as shortest decimal text: read back
+        # as f32, it is the value the simulator holds.
+        goal = np.float32(self._scene["goal"]["joints"][g["joint"]]) if self.task == "goal" else np.nan
+        reward, success, farthest = score(
+            self.task,
+            np.float64(info["joint_before"]),
+            np.float64(info["joint_after"]),
+            np.float64(g["start"]),
+            np.float64(g["farthest"]),
+            np.float64(g["limits"][0]),
+            np.float64(g["limits"][1]),
+            np.float64(g["threshold"]),
+            np.float64(goal),
         )
-        return reward, bool(reached), bool(reached)
+        g["farthest"] = float(farthest)
+        return float(reward), bool(success), bool(success)
 
     def render(self):
         if self._obs is None:
@@ -136,14 +163,135 @@ class UmpnetEnv(gym.Env):
         return (np.clip(self._obs["image"][..., 3:6], 0, 1) * 255).astype(np.uint8)
 
 
+class UmpnetVectorEnv(VectorEnv):
+    """``num_envs`` umpnet environments stepped together in Rust threads
+    (``umpnet.VecEnv``), as a ``gymnasium.vector.VectorEnv``.
+
+    Spaces, rewards, ends and ``info["success"]``/``info["elapsed_steps"]`` are
+    those of ``UmpnetEnv``, batched. Environments reset on the step after they
+    end (gymnasium's next-step autoreset): that step's action is ignored, its
+    reward is 0 and ``info["reset"]`` is True. Made by
+    ``gym.make_vec("umpnet/Explore-v0", num_envs=n)``.
+
+    Environment i draws its scenes from seed ``seed + i``. Observations are
+    fresh arrays unless ``copy=False`` (then the VecEnv's reused buffers).
+    """
+
+    metadata: ClassVar[dict] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(
+        self,
+        num_envs=1,
+        task="exploration",
+        max_steps=None,
+        max_episode_steps=None,
+        resolution=(96, 128),
+        **env_kwargs,
+    ):
+        if task not in ("exploration", "goal"):
+            raise ValueError(f"task {task!r}: expected 'exploration' or 'goal'")
+        self.num_envs, self.task, self.max_steps = int(num_envs), task, max_steps
+        self.max_episode_steps = max_episode_steps
+        h, w = resolution
+        self._seed = env_kwargs.pop("seed", 0)
+        env_kwargs.setdefault("copy", True)
+        self._kwargs = dict(task=task, resolution=resolution, **env_kwargs)
+        self._vec = VecEnv(self.num_envs, seed=self._seed, **self._kwargs)
+        one = UmpnetEnv.spaces(h, w)
+        self.single_observation_space, self.single_action_space = one
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        n = self.num_envs
+        self._phase = np.zeros(n, np.int64)
+        self._t = np.zeros(n, np.int64)  # direction steps
+        self._env_steps = np.zeros(n, np.int64)  # all steps, for max_episode_steps
+        self._done = np.zeros(n, bool)
+        self._budget = np.full(n, 10, np.int64)
+        self._start, self._farthest = np.zeros(n), np.zeros(n)
+        self._limits, self._threshold, self._goal = np.zeros((n, 2)), np.zeros(n), np.zeros(n)
+
+    def _observation(self, obs):
+        return {"image": obs["image"], "reference": obs["reference"], "phase": self._phase.copy()}
+
+    def reset(self, *, seed=None, options=None):
+        if seed is not None:
+            self._vec = VecEnv(self.num_envs, seed=int(seed), **self._kwargs)
+        obs = self._vec.reset((options or {}).get("scenes"))
+        n = self.num_envs
+        self._phase[:], self._t[:], self._env_steps[:], self._done[:] = 0, 0, 0, False
+        # The budgets come with the next step's info; until then, the scenes'.
+        self._budget[:] = [BUDGETS.get(s.get("category"), 10) for s in self._vec.scenes]
+        info = {"success": np.zeros(n, bool), "elapsed_steps": np.zeros(n, np.int64)}
+        return self._observation(obs), info
+
+    def step(self, actions):
+        n = self.num_envs
+        pixels = np.asarray(actions["pixel"], dtype=np.int64).reshape(n, 2)
+        directions = np.asarray(actions["direction"], dtype=np.float32).reshape(n, 3)
+        # Like UmpnetEnv: an unusable direction becomes straight up.
+        bad = ~np.isfinite(directions).all(axis=1) | (np.linalg.norm(directions, axis=1) < 1e-6)
+        directions = np.where(bad[:, None], np.array([0.0, 0.0, 1.0], np.float32), directions)
+        reset = self._done.copy()
+        obs, raw = self._vec.step_mixed(reset, self._phase.copy(), pixels, directions)
+        kind = raw["kind"]
+        reward = np.zeros(n)
+        success = np.zeros(n, bool)
+        terminated = np.zeros(n, bool)
+
+        was_reset = kind == 1
+        self._phase[was_reset], self._t[was_reset], self._env_steps[was_reset] = 0, 0, 0
+        self._budget[:] = raw["budget"]
+
+        grasp = kind == 2
+        self._phase[grasp] = 1
+        terminated[grasp] = ~raw["valid"][grasp]
+        self._start[grasp], self._farthest[grasp] = raw["start"][grasp], 0.0
+        self._limits[grasp], self._threshold[grasp] = raw["limits"][grasp], raw["threshold"][grasp]
+        self._goal[grasp] = raw["goal"][grasp]
+
+        # Nothing to do can only follow a lost grasp: the episode is over.
+        terminated[kind == 0] = True
+        move = kind == 3
+        self._t[move] += 1
+        r, ok, farthest = score(
+            self.task,
+            raw["joint_before"][move].astype(np.float64),
+            raw["joint_after"][move].astype(np.float64),
+            self._start[move],
+            self._farthest[move],
+            self._limits[move, 0],
+            self._limits[move, 1],
+            self._threshold[move],
+            self._goal[move],
+        )
+        reward[move], success[move], terminated[move] = r, ok, ok
+        self._farthest[move] = farthest
+
+        self._env_steps[~was_reset] += 1
+        budget = self._budget if self.max_steps is None else np.full(n, int(self.max_steps))
+        truncated = ~terminated & ~was_reset & (self._t >= budget)
+        if self.max_episode_steps is not None:
+            truncated |= ~terminated & ~was_reset & (self._env_steps >= self.max_episode_steps)
+        self._done = terminated | truncated
+        info = {
+            "success": success,
+            "elapsed_steps": self._t.copy(),
+            "reset": was_reset,
+            **{k: raw[k] for k in ("valid", "joint", "joint_before", "joint_after", "r_dist", "aot", "suction_lost")},
+        }
+        return self._observation(obs), reward, terminated, truncated, info
+
+    def __repr__(self):
+        return f"UmpnetVectorEnv(num_envs={self.num_envs}, task={self.task!r})"
+
+
 # The position step plus the largest budget: TimeLimit never cuts an episode
 # short of its category's budget.
-gym.register(
-    id="umpnet/Explore-v0",
-    entry_point="umpnet.gym:UmpnetEnv",
-    kwargs={"task": "exploration"},
-    max_episode_steps=MAX_BUDGET + 1,
-)
-gym.register(
-    id="umpnet/Goal-v0", entry_point="umpnet.gym:UmpnetEnv", kwargs={"task": "goal"}, max_episode_steps=MAX_BUDGET + 1
-)
+for _id, _task in (("umpnet/Explore-v0", "exploration"), ("umpnet/Goal-v0", "goal")):
+    gym.register(
+        id=_id,
+        entry_point="umpnet.gym:UmpnetEnv",
+        vector_entry_point="umpnet.gym:UmpnetVectorEnv",
+        kwargs={"task": _task},
+        max_episode_steps=MAX_BUDGET + 1,
+    )

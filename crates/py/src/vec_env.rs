@@ -1,0 +1,575 @@
+//! `umpnet.VecEnv`: n environments stepped in parallel Rust threads, and the
+//! mixed step that a gymnasium `VectorEnv` needs (each environment resets,
+//! grasps or moves, as its own episode stands).
+#![allow(
+    clippy::indexing_slicing,
+    reason = "every index follows a shape check of the array it indexes, which raises ValueError otherwise"
+)]
+use crate::arrays::{Arr1, Arr2, Arr3};
+use crate::{
+    Categories, MAX_ENVS, buffers, eval_err, make_config, parse_direction, probe, scene_from_py,
+    scene_to_py, scripted_to_py,
+};
+use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+use std::path::PathBuf;
+use umpnet_eval::train_env::TrainEnv;
+use umpnet_sim::env::StepLabels;
+use umpnet_sim::scene::Scene;
+
+/// n environments stepped in parallel Rust threads (GIL released); env i is
+/// seeded `seed + i`. Results are stacked into one numpy array per field.
+///
+/// Like `Env`, observations are buffers rewritten in place by every step
+/// unless `copy=True`.
+#[pyclass(module = "umpnet")]
+pub(crate) struct VecEnv {
+    envs: Vec<TrainEnv>,
+    buffers: buffers::ObsBuffers,
+    copy: bool,
+}
+
+#[pymethods]
+impl VecEnv {
+    #[new]
+    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", copy=false))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        n: usize,
+        category: Option<Categories>,
+        split: &str,
+        seed: u64,
+        resolution: (u32, u32),
+        task: &str,
+        object_dir: Option<PathBuf>,
+        renderer: &str,
+        dataset_seed: u64,
+        physics: &str,
+        copy: bool,
+    ) -> PyResult<Self> {
+        if !(1..=MAX_ENVS).contains(&n) {
+            return Err(PyValueError::new_err(format!(
+                "n = {n}: expected 1 to {MAX_ENVS} environments"
+            )));
+        }
+        let cfg = make_config(
+            category,
+            split,
+            resolution,
+            task,
+            object_dir,
+            renderer,
+            dataset_seed,
+            physics,
+        )?;
+        let envs = (0..n)
+            .map(|i| TrainEnv::new(cfg.clone(), seed + i as u64))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(eval_err)?;
+        let (h, w) = (resolution.0 as usize, resolution.1 as usize);
+        Ok(Self {
+            envs,
+            buffers: buffers::ObsBuffers::new(py, Some(n), h, w)?,
+            copy,
+        })
+    }
+
+    fn __len__(&self) -> usize {
+        self.envs.len()
+    }
+
+    /// Resets every environment (optionally to given scenes: dicts from
+    /// `.scenes`, or their JSON text, one each).
+    #[pyo3(signature = (scenes=None))]
+    fn reset<'py>(
+        &mut self,
+        py: Python<'py>,
+        scenes: Option<Vec<Bound<'py, PyAny>>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.envs.len();
+        let scenes: Vec<Option<Scene>> = match scenes {
+            Some(s) if s.len() != n => {
+                return Err(PyValueError::new_err(format!(
+                    "{} scenes for {n} environments",
+                    s.len()
+                )));
+            }
+            Some(s) => s
+                .iter()
+                .map(|j| scene_from_py(j).map(Some))
+                .collect::<PyResult<_>>()?,
+            None => vec![None; n],
+        };
+        let envs = &mut self.envs;
+        py.detach(|| {
+            envs.par_iter_mut()
+                .zip(scenes)
+                .map(|(e, s)| e.reset_in_place(s))
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .map_err(eval_err)?;
+        self.buffers.fill(py, &mut self.envs, true, self.copy)
+    }
+
+    /// Scenes of all environments as dicts (None before the first reset).
+    #[getter]
+    fn scenes<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        self.envs
+            .iter()
+            .map(|e| match e.scene() {
+                Some(s) => scene_to_py(py, s),
+                None => Ok(py.None().into_bound(py)),
+            })
+            .collect()
+    }
+
+    /// pixels: int array n x 2 (row, col). Returns (observations, info) with info["valid"] a bool array.
+    fn step_position<'py>(
+        &mut self,
+        py: Python<'py>,
+        pixels: Arr2<'py, i64>,
+    ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+        let pixels = pixels.0;
+        let n = self.envs.len();
+        if pixels.shape() != [n, 2] {
+            return Err(PyValueError::new_err(format!(
+                "pixels has shape {:?}, expected ({n}, 2)",
+                pixels.shape()
+            )));
+        }
+        // Checked, not cast: 2**32 + r must not wrap round to r.
+        let Ok(p) = pixels
+            .as_array()
+            .iter()
+            .map(|&v| u32::try_from(v))
+            .collect::<Result<Vec<u32>, _>>()
+        else {
+            return Err(PyValueError::new_err(
+                "pixels must be non-negative and inside the image",
+            ));
+        };
+        let envs = &mut self.envs;
+        let out = py
+            .detach(|| {
+                envs.par_iter_mut()
+                    .enumerate()
+                    .map(|(i, e)| e.step_position_in_place(p[2 * i], p[2 * i + 1]))
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .map_err(eval_err)?;
+        let infos = out;
+        let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
+        let info = PyDict::new(py);
+        info.set_item(
+            "valid",
+            PyArray1::from_vec(py, infos.iter().map(|i| i.valid).collect::<Vec<_>>()),
+        )?;
+        info.set_item(
+            "joint",
+            infos
+                .iter()
+                .map(|i| i.joint.map(|j| j as i64).unwrap_or(-1))
+                .collect::<Vec<_>>(),
+        )?;
+        // (n, 2) limits and (n,) thresholds of the grasped joints; NaN where no grasp.
+        let limits: Vec<f32> = infos
+            .iter()
+            .flat_map(|i| i.limits.unwrap_or([f32::NAN; 2]))
+            .collect();
+        info.set_item("limits", PyArray1::from_vec(py, limits).reshape([n, 2])?)?;
+        info.set_item(
+            "threshold",
+            PyArray1::from_vec(
+                py,
+                infos
+                    .iter()
+                    .map(|i| i.threshold.unwrap_or(f32::NAN))
+                    .collect::<Vec<_>>(),
+            ),
+        )?;
+        Ok((obs, info))
+    }
+
+    /// directions: float array n x 3. Environments without a valid grasp are
+    /// skipped (info["active"] False, labels zero). Returns (observations, labels, info).
+    fn step_direction<'py>(
+        &mut self,
+        py: Python<'py>,
+        directions: Arr2<'py, f32>,
+    ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+        let directions = directions.0;
+        let n = self.envs.len();
+        if directions.shape() != [n, 3] {
+            return Err(PyValueError::new_err(format!(
+                "directions has shape {:?}, expected ({n}, 3)",
+                directions.shape()
+            )));
+        }
+        let a = directions.as_array();
+        let dirs: Vec<[f32; 3]> = (0..n).map(|i| [a[[i, 0]], a[[i, 1]], a[[i, 2]]]).collect();
+        for (i, d) in dirs.iter().enumerate() {
+            if self.envs[i].grasped_joint().is_some() {
+                parse_direction(d.to_vec())
+                    .map_err(|e| PyValueError::new_err(format!("row {i}: {e}")))?;
+            }
+        }
+        let envs = &mut self.envs;
+        let out = py
+            .detach(|| {
+                envs.par_iter_mut()
+                    .zip(&dirs)
+                    .map(|(e, d)| {
+                        if e.grasped_joint().is_some() {
+                            e.step_direction_in_place(*d).map(Some)
+                        } else {
+                            Ok(None)
+                        }
+                    })
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .map_err(eval_err)?;
+        let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
+        let labels = PyDict::new(py);
+        let get = |f: &dyn Fn(&StepLabels) -> f32| -> Vec<f32> {
+            out.iter()
+                .map(|l| l.as_ref().map(f).unwrap_or(0.0))
+                .collect()
+        };
+        labels.set_item("r_dist", PyArray1::from_vec(py, get(&|l| l.r_dist)))?;
+        labels.set_item(
+            "aot",
+            PyArray1::from_vec(
+                py,
+                out.iter()
+                    .map(|l| l.as_ref().map(|l| l.aot as i64).unwrap_or(0))
+                    .collect::<Vec<_>>(),
+            ),
+        )?;
+        labels.set_item(
+            "moved",
+            PyArray1::from_vec(
+                py,
+                out.iter()
+                    .map(|l| l.as_ref().is_some_and(|l| l.moved))
+                    .collect::<Vec<_>>(),
+            ),
+        )?;
+        labels.set_item(
+            "train_aot",
+            PyArray1::from_vec(
+                py,
+                out.iter()
+                    .map(|l| l.as_ref().map(|l| l.train.aot as i64).unwrap_or(0))
+                    .collect::<Vec<_>>(),
+            ),
+        )?;
+        let flag = |f: &dyn Fn(&StepLabels) -> bool| -> Vec<bool> {
+            out.iter().map(|l| l.as_ref().is_some_and(f)).collect()
+        };
+        labels.set_item(
+            "train_moved",
+            PyArray1::from_vec(py, flag(&|l| l.train.moved)),
+        )?;
+        let info = PyDict::new(py);
+        info.set_item(
+            "active",
+            PyArray1::from_vec(py, out.iter().map(|l| l.is_some()).collect::<Vec<_>>()),
+        )?;
+        info.set_item(
+            "joint_after",
+            PyArray1::from_vec(py, get(&|l| l.joint_after)),
+        )?;
+        info.set_item(
+            "suction_lost",
+            PyArray1::from_vec(py, flag(&|l| l.suction_lost)),
+        )?;
+        info.set_item(
+            "reached_boundary",
+            PyArray1::from_vec(py, flag(&|l| l.train.reached_boundary)),
+        )?;
+        info.set_item(
+            "reached_init",
+            PyArray1::from_vec(py, flag(&|l| l.train.reached_init)),
+        )?;
+        Ok((obs, labels, info))
+    }
+
+    /// One step of every environment, each as its own episode stands: the
+    /// step a gymnasium `VectorEnv` with autoreset needs. For environment i:
+    /// - `reset[i]`: a new episode (a scene from its own seed stream); its
+    ///   reference is rewritten;
+    /// - else `phase[i] == 0`: grasp `pixels[i]`;
+    /// - else, holding a grasp: move along `directions[i]`;
+    /// - else nothing.
+    ///
+    /// Returns (observations, info) with one array per field, `kind` saying
+    /// what each environment did (0 nothing, 1 reset, 2 grasp, 3 move).
+    /// Grasps fill `valid`, `joint`, `limits`, `threshold`, `start` (the
+    /// grasped joint's value) and `goal` (its goal value; NaN outside the goal
+    /// task); moves fill `joint_before`, `joint_after`, `r_dist`, `aot` and
+    /// `suction_lost`; `budget` is the current scene's category budget of
+    /// direction steps (10 for an object file). Fields that do not apply are
+    /// NaN, -1 or false.
+    fn step_mixed<'py>(
+        &mut self,
+        py: Python<'py>,
+        reset: Arr1<'py, bool>,
+        phase: Arr1<'py, i64>,
+        pixels: Arr2<'py, i64>,
+        directions: Arr2<'py, f32>,
+    ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+        let n = self.envs.len();
+        let (reset, phase, pixels, directions) = (reset.0, phase.0, pixels.0, directions.0);
+        for (name, shape, want) in [
+            ("reset", reset.shape(), vec![n]),
+            ("phase", phase.shape(), vec![n]),
+            ("pixels", pixels.shape(), vec![n, 2]),
+            ("directions", directions.shape(), vec![n, 3]),
+        ] {
+            if shape != want.as_slice() {
+                return Err(PyValueError::new_err(format!(
+                    "{name} has shape {shape:?}, expected {want:?}"
+                )));
+            }
+        }
+        let (reset, phase, pixels, directions) = (
+            reset.as_array(),
+            phase.as_array(),
+            pixels.as_array(),
+            directions.as_array(),
+        );
+        let mut actions = Vec::with_capacity(n);
+        for i in 0..n {
+            actions.push(if reset[i] {
+                Mixed::Reset
+            } else if phase[i] == 0 {
+                let (Ok(r), Ok(c)) = (u32::try_from(pixels[[i, 0]]), u32::try_from(pixels[[i, 1]]))
+                else {
+                    return Err(PyValueError::new_err(format!(
+                        "pixels row {i}: must be non-negative and inside the image"
+                    )));
+                };
+                Mixed::Grasp(r, c)
+            } else if self.envs[i].grasped_joint().is_some() {
+                let d = [directions[[i, 0]], directions[[i, 1]], directions[[i, 2]]];
+                parse_direction(d.to_vec())
+                    .map_err(|e| PyValueError::new_err(format!("directions row {i}: {e}")))?;
+                Mixed::Move(d)
+            } else {
+                Mixed::Idle
+            });
+        }
+        let envs = &mut self.envs;
+        let outcomes = py
+            .detach(|| {
+                envs.par_iter_mut()
+                    .zip(&actions)
+                    .map(|(e, a)| mixed_step(e, *a))
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .map_err(eval_err)?;
+        let reset: Vec<bool> = actions.iter().map(|a| matches!(a, Mixed::Reset)).collect();
+        let obs = self
+            .buffers
+            .fill_masked(py, &mut self.envs, &reset, self.copy)?;
+        let budgets: Vec<i64> = self
+            .envs
+            .iter()
+            .map(|e| {
+                e.scene()
+                    .and_then(|s| s.category)
+                    .map_or(DEFAULT_BUDGET, |c| c.step_budget() as i64)
+            })
+            .collect();
+        let info = mixed_info(py, &outcomes, budgets)?;
+        Ok((obs, info))
+    }
+
+    /// Dense labels for every environment: `directions` is float32 (n, k, 3);
+    /// returns (n, k) arrays r_dist, aot, moved, joint_after and `active` (n,),
+    /// False where an environment holds no grasp (its labels are zero). The
+    /// environments' states do not change.
+    fn probe_directions<'py>(
+        &self,
+        py: Python<'py>,
+        directions: Arr3<'py, f32>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let directions = directions.0;
+        let dirs = probe::directions(&directions, self.envs.len())?;
+        let k = directions.shape()[1];
+        let labels = probe::probe_all(py, &self.envs, &dirs)?;
+        probe::labels_dict(py, &labels, k)
+    }
+
+    /// Scripted actions for every environment (see Env.scripted_action).
+    fn scripted_actions(&mut self, py: Python<'_>, policy: &str) -> PyResult<Vec<Py<PyAny>>> {
+        let mut out = Vec::with_capacity(self.envs.len());
+        for e in &mut self.envs {
+            out.push(scripted_to_py(
+                py,
+                e.scripted_action(policy).map_err(eval_err)?,
+            )?);
+        }
+        Ok(out)
+    }
+}
+
+/// The direction budget of a scene without a category (an object file), as
+/// the gymnasium envs use.
+const DEFAULT_BUDGET: i64 = 10;
+
+#[derive(Clone, Copy)]
+enum Mixed {
+    Idle,
+    Reset,
+    Grasp(u32, u32),
+    Move([f32; 3]),
+}
+
+enum Outcome {
+    Idle,
+    Reset,
+    Grasp {
+        info: umpnet_eval::train_env::PositionInfo,
+        start: f32,
+        goal: f32,
+    },
+    Move(StepLabels),
+}
+
+fn mixed_step(e: &mut TrainEnv, a: Mixed) -> Result<Outcome, umpnet_eval::EvalError> {
+    Ok(match a {
+        Mixed::Idle => Outcome::Idle,
+        Mixed::Reset => {
+            e.reset_in_place(None)?;
+            Outcome::Reset
+        }
+        Mixed::Grasp(r, c) => {
+            let info = e.step_position_in_place(r, c)?;
+            let value = |joints: &[f32]| {
+                info.joint
+                    .and_then(|j| joints.get(j).copied())
+                    .unwrap_or(f32::NAN)
+            };
+            let start = value(&e.joint_positions());
+            let goal = e
+                .scene()
+                .and_then(|s| s.goal.as_ref())
+                .map_or(f32::NAN, |g| value(&g.joints));
+            Outcome::Grasp { info, start, goal }
+        }
+        Mixed::Move(d) => Outcome::Move(e.step_direction_in_place(d)?),
+    })
+}
+
+fn mixed_info<'py>(
+    py: Python<'py>,
+    outcomes: &[Outcome],
+    budgets: Vec<i64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let n = outcomes.len();
+    let d = PyDict::new(py);
+    let kind: Vec<i64> = outcomes
+        .iter()
+        .map(|o| match o {
+            Outcome::Idle => 0,
+            Outcome::Reset => 1,
+            Outcome::Grasp { .. } => 2,
+            Outcome::Move(_) => 3,
+        })
+        .collect();
+    d.set_item("kind", PyArray1::from_vec(py, kind))?;
+    let grasp = |f: &dyn Fn(&umpnet_eval::train_env::PositionInfo, f32, f32) -> f32| -> Vec<f32> {
+        outcomes
+            .iter()
+            .map(|o| match o {
+                Outcome::Grasp { info, start, goal } => f(info, *start, *goal),
+                _ => f32::NAN,
+            })
+            .collect()
+    };
+    let moved = |f: &dyn Fn(&StepLabels) -> f32| -> Vec<f32> {
+        outcomes
+            .iter()
+            .map(|o| match o {
+                Outcome::Move(l) => f(l),
+                _ => f32::NAN,
+            })
+            .collect()
+    };
+    d.set_item(
+        "valid",
+        PyArray1::from_vec(
+            py,
+            outcomes
+                .iter()
+                .map(|o| matches!(o, Outcome::Grasp { info, .. } if info.valid))
+                .collect::<Vec<_>>(),
+        ),
+    )?;
+    d.set_item(
+        "joint",
+        PyArray1::from_vec(
+            py,
+            outcomes
+                .iter()
+                .map(|o| match o {
+                    Outcome::Grasp { info, .. } => info.joint.map_or(-1, |j| j as i64),
+                    _ => -1,
+                })
+                .collect::<Vec<_>>(),
+        ),
+    )?;
+    let limits: Vec<f32> = outcomes
+        .iter()
+        .flat_map(|o| match o {
+            Outcome::Grasp { info, .. } => info.limits.unwrap_or([f32::NAN; 2]),
+            _ => [f32::NAN; 2],
+        })
+        .collect();
+    d.set_item("limits", PyArray1::from_vec(py, limits).reshape([n, 2])?)?;
+    d.set_item(
+        "threshold",
+        PyArray1::from_vec(py, grasp(&|i, _, _| i.threshold.unwrap_or(f32::NAN))),
+    )?;
+    d.set_item("start", PyArray1::from_vec(py, grasp(&|_, s, _| s)))?;
+    d.set_item("goal", PyArray1::from_vec(py, grasp(&|_, _, g| g)))?;
+    d.set_item(
+        "joint_before",
+        PyArray1::from_vec(py, moved(&|l| l.joint_before)),
+    )?;
+    d.set_item(
+        "joint_after",
+        PyArray1::from_vec(py, moved(&|l| l.joint_after)),
+    )?;
+    d.set_item("r_dist", PyArray1::from_vec(py, moved(&|l| l.r_dist)))?;
+    d.set_item(
+        "aot",
+        PyArray1::from_vec(
+            py,
+            outcomes
+                .iter()
+                .map(|o| match o {
+                    Outcome::Move(l) => i64::from(l.aot),
+                    _ => 0,
+                })
+                .collect::<Vec<_>>(),
+        ),
+    )?;
+    d.set_item(
+        "suction_lost",
+        PyArray1::from_vec(
+            py,
+            outcomes
+                .iter()
+                .map(|o| matches!(o, Outcome::Move(l) if l.suction_lost))
+                .collect::<Vec<_>>(),
+        ),
+    )?;
+    d.set_item("budget", PyArray1::from_vec(py, budgets))?;
+    Ok(d)
+}

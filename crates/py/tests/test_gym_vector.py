@@ -1,0 +1,124 @@
+"""The gymnasium VectorEnv over the Rust VecEnv: the same episodes, rewards,
+ends and observations as separate UmpnetEnvs, with next-step autoreset."""
+
+import gymnasium as gym  # a requirement (train_py/requirements.txt), never skipped
+import numpy as np
+import pytest
+import umpnet
+import umpnet.gym  # noqa: F401  (registers the ids)
+from gymnasium.vector import AutoresetMode
+from umpnet.gym import UmpnetEnv, UmpnetVectorEnv
+
+RES = (48, 64)
+CATEGORIES = ["Door", "StorageFurniture", "Microwave", "Kettle"]
+
+
+def _action(a, phase):
+    """A scripted action (pixel, direction or None for stop) as one env's action dict."""
+    pixel = np.zeros(2, np.int64)
+    direction = np.array([0.0, 0.0, 1.0], np.float32)
+    if phase == 0:
+        pixel = np.asarray(a, np.int64)
+    elif a is not None:
+        direction = np.asarray(a, np.float32)
+    return {"phase": phase, "pixel": pixel, "direction": direction}
+
+
+@pytest.mark.parametrize("task", ["goal", "exploration"])
+def test_vector_env_steps_like_separate_envs_with_autoreset(task):
+    n, seed = 3, 7
+    venv = UmpnetVectorEnv(num_envs=n, task=task, resolution=RES, category=CATEGORIES, seed=seed)
+    singles = [UmpnetEnv(task=task, resolution=RES, category=CATEGORIES, seed=seed + i) for i in range(n)]
+    vobs, vinfo = venv.reset()
+    for i, e in enumerate(singles):
+        obs, _ = e.reset()
+        assert np.array_equal(vobs["image"][i], obs["image"]) and np.array_equal(vobs["reference"][i], obs["reference"])
+    assert not vinfo["success"].any() and (vinfo["elapsed_steps"] == 0).all()
+    done = np.zeros(n, bool)
+    resets = successes = moves = 0
+    for _ in range(40):
+        # Every env's scripted oracle is asked each step, in the vector and in
+        # the separate envs alike, so their random streams stay in step.
+        wanted = venv._vec.scripted_actions("oracle")
+        assert wanted == [e._env.scripted_action("oracle") for e in singles]
+        phases = vobs["phase"]
+        acts = [_action(a, int(p)) for a, p in zip(wanted, phases, strict=True)]
+        batched = {k: np.stack([a[k] for a in acts]) for k in ("phase", "pixel", "direction")}
+        vobs, reward, term, trunc, info = venv.step(batched)
+        for i, e in enumerate(singles):
+            if done[i]:
+                obs, sinfo = e.reset()
+                assert info["reset"][i] and reward[i] == 0 and not term[i] and not trunc[i]
+                assert vobs["phase"][i] == 0 and info["elapsed_steps"][i] == 0
+                assert np.array_equal(vobs["reference"][i], obs["reference"])
+                resets += 1
+            else:
+                obs, r, t, tr, sinfo = e.step(acts[i])
+                assert not info["reset"][i]
+                assert reward[i] == pytest.approx(r, abs=1e-9), (i, reward[i], r)
+                assert (term[i], trunc[i]) == (t, tr), i
+                assert info["success"][i] == sinfo["success"] and info["elapsed_steps"][i] == sinfo["elapsed_steps"]
+                successes += int(sinfo["success"])
+                moves += int(acts[i]["phase"] == 1)
+            assert np.array_equal(vobs["image"][i], obs["image"]), i
+            assert vobs["phase"][i] == obs["phase"]
+        done = term | trunc
+    # The comparison covered grasps, moves, successes and autoresets.
+    assert resets >= 3 and successes >= 2 and moves >= 10, (resets, successes, moves)
+
+
+def test_make_vec_gives_the_rust_vector_env_with_gymnasium_spaces():
+    venv = gym.make_vec("umpnet/Goal-v0", num_envs=2, resolution=RES, category=CATEGORIES)
+    assert isinstance(venv.unwrapped, UmpnetVectorEnv)
+    assert venv.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    assert venv.num_envs == 2
+    assert venv.single_observation_space["image"].shape == (*RES, 10)
+    assert venv.observation_space["image"].shape == (2, *RES, 10)
+    obs, info = venv.reset(seed=3)
+    assert venv.observation_space.contains(obs)
+    assert info["success"].shape == (2,) and info["elapsed_steps"].dtype == np.int64
+    venv.action_space.seed(0)
+    ended = 0
+    for _ in range(30):
+        obs, reward, term, trunc, info = venv.step(venv.action_space.sample())
+        assert venv.observation_space.contains(obs)
+        assert reward.shape == (2,) and reward.dtype == np.float64 and np.isfinite(reward).all()
+        assert term.dtype == bool and trunc.dtype == bool and info["success"].dtype == bool
+        ended += int((term | trunc).sum())
+    assert ended > 0  # random pixels mostly miss: episodes end and restart
+    # The spec's step limit reaches the vector env (gymnasium passes it on).
+    assert venv.unwrapped.max_episode_steps == venv.spec.max_episode_steps
+
+
+def test_same_seed_same_vector_episodes():
+    def run():
+        venv = UmpnetVectorEnv(num_envs=2, task="exploration", resolution=RES, category=CATEGORIES, seed=1)
+        venv.reset()
+        venv.action_space.seed(5)
+        out = []
+        for _ in range(12):
+            obs, reward, term, trunc, _ = venv.step(venv.action_space.sample())
+            out.append((obs["image"].copy(), reward, term, trunc))
+        return out
+
+    for (a, ra, ta, tra), (b, rb, tb, trb) in zip(run(), run(), strict=True):
+        assert np.array_equal(a, b) and np.array_equal(ra, rb) and np.array_equal(ta, tb) and np.array_equal(tra, trb)
+
+
+def test_mixed_step_refuses_bad_shapes_and_pixels_by_name():
+    vec = umpnet.VecEnv(2, resolution=RES, category="Door")
+    vec.reset()
+    ok = dict(
+        reset=np.zeros(2, bool),
+        phase=np.zeros(2, np.int64),
+        pixels=np.zeros((2, 2), np.int64),
+        directions=np.zeros((2, 3), np.float32),
+    )
+    with pytest.raises(ValueError, match=r"phase has shape \[3\], expected \[2\]"):
+        vec.step_mixed(**{**ok, "phase": np.zeros(3, np.int64)})
+    with pytest.raises(ValueError, match="pixels row 1"):
+        vec.step_mixed(**{**ok, "pixels": np.array([[0, 0], [-1, 0]], np.int64)})
+    with pytest.raises(TypeError, match="bool"):
+        vec.step_mixed(**{**ok, "reset": np.zeros(2, np.int64)})
+    with pytest.raises(ValueError, match="task"):
+        UmpnetVectorEnv(num_envs=2, task="explore")
