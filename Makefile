@@ -7,7 +7,7 @@ export XDG_RUNTIME_DIR ?= /tmp
 FIXTURE := $(CURDIR)/target/fixture
 export UMPNET_FIXTURE := $(FIXTURE)
 
-.PHONY: install install-runtime build py fixture demo eval-baselines test lint test-rust test-python mutants mutants-ci clean
+.PHONY: install install-runtime build py fixture demo eval-baselines test test-rerun lint test-rust test-python mutants mutants-ci clean
 
 install:
 	@bash scripts/install.sh all
@@ -16,8 +16,13 @@ install:
 install-runtime:
 	@bash scripts/install.sh runtime
 
+# `CARGO_FEATURES=--features umpnet-cli/rerun` builds Rerun recordings (`--rrd`) in;
+# `make test-rerun` builds and tests them (the Rerun SDK is ~300 crates, about
+# 27 CPU-minutes here, so `make test` checks only the refusal without it).
+CARGO_FEATURES ?=
+
 build: install-runtime
-	cargo build --release
+	cargo build --release $(CARGO_FEATURES)
 
 # The Python module `umpnet` (Rust, through maturin) into .venv.
 py: install
@@ -50,12 +55,12 @@ eval-baselines: build
 
 lint: install
 	cargo fmt --all --check
-	cargo clippy --release --workspace --all-targets -- -D warnings
+	cargo clippy --release --workspace --all-targets $(CARGO_FEATURES) -- -D warnings
 	.venv/bin/ruff check tests train_py crates/py scripts benches
 	.venv/bin/ruff format --check tests train_py crates/py scripts benches
 
 test-rust: fixture
-	UMPNET_REQUIRE_WGPU=1 cargo test --release
+	UMPNET_REQUIRE_WGPU=1 cargo test --release $(CARGO_FEATURES)
 
 test-python: build py fixture
 	# One process per suite: native libraries loaded by one suite cannot affect another.
@@ -84,6 +89,12 @@ mutants: build py fixture
 	UMPNET_FIXTURE=$(FIXTURE) $(PY) scripts/mutants.py
 
 test: lint test-rust test-python mutants-ci
+
+test-rerun: CARGO_FEATURES := --features umpnet-cli/rerun
+test-rerun: build
+	cargo clippy --release -p umpnet-cli --all-targets $(CARGO_FEATURES) -- -D warnings
+	cargo test --release -p umpnet-cli $(CARGO_FEATURES)
+	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py -k rrd
 
 clean:
 	cargo clean

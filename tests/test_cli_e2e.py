@@ -412,3 +412,52 @@ def test_pictures_have_captions_a_legend_and_the_goal(tmp_path):
     depth = np.asarray(Image.open(tmp_path / "r" / "depth.png").convert("RGB")).astype(int)
     numbers = depth[:, 160 + 40 :]
     assert dark(numbers) > 15, "the depth legend has no numbers"  # white there without them
+
+
+def built_with_rerun(tmp_path) -> bool:
+    """`--rrd` needs the `rerun` feature (`make test-rerun`). Without it the
+    flag must refuse at once, name the fix and write nothing."""
+    probe = tmp_path / "probe.rrd"
+    p = run("explore", "--category", "Door", "--resolution", "48x64", "--rrd", str(probe), check=False)
+    if "built without Rerun support" not in p.stderr:
+        assert p.returncode == 0, p.stderr
+        return True
+    assert p.returncode == 2 and "--features rerun" in p.stderr, p.stderr
+    assert not probe.exists() and p.stdout == ""
+    bad = run("eval", "--categories", "Door", "--episodes-per-category", "1", "--rrd", str(tmp_path / "r"), check=False)
+    assert bad.returncode == 2 and "built without Rerun support" in bad.stderr and bad.stdout == ""
+    return False
+
+
+def test_rrd_recordings_of_an_episode_and_of_chosen_eval_episodes(tmp_path):
+    if not built_with_rerun(tmp_path):
+        return  # the refusal is what this build must do, checked above
+    rrd = tmp_path / "goal.rrd"
+    run("goal", "--category", "Door", "--seed", "2", "--policy", "oracle", "--resolution", "48x64", "--rrd", str(rrd))
+    assert rrd.read_bytes()[:3] == b"RRF", "not a Rerun file"
+    out = tmp_path / "rec"
+    p = run(
+        "eval",
+        "--task",
+        "goal",
+        "--categories",
+        "Door,Microwave",
+        "--episodes-per-category",
+        "2",
+        "--policies",
+        "oracle,random",
+        "--resolution",
+        "48x64",
+        "--rrd",
+        str(out),
+        "--rrd-per-category",
+        "1",
+    )
+    names = sorted(f.name for f in out.iterdir())
+    assert names == ["Door_0_oracle.rrd", "Door_0_random.rrd", "Microwave_0_oracle.rrd", "Microwave_0_random.rrd"]
+    assert "recorded 4 episodes" in p.stdout
+    for f in out.iterdir():
+        assert f.stat().st_size > 10_000 and f.read_bytes()[:3] == b"RRF", f
+    # Without --rrd, --rrd-per-category is a usage error.
+    bad = run("eval", "--rrd-per-category", "2", check=False)
+    assert bad.returncode == 2 and "--rrd" in bad.stderr

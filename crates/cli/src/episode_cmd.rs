@@ -3,7 +3,7 @@ use anyhow::{Context, Result};
 use image::RgbImage;
 use std::path::PathBuf;
 use umpnet_eval::Policy;
-use umpnet_eval::episode::{EpisodeConfig, Step, run_episode};
+use umpnet_eval::episode::{EpisodeConfig, HookFrame, Step, run_episode};
 use umpnet_sim::camera::Camera;
 use umpnet_sim::math::Vec3;
 use umpnet_sim::render::{Frame, RendererKind, create_renderer};
@@ -33,6 +33,11 @@ pub struct EpisodeArgs {
     /// Write one PNG per step, a contact sheet and an animated GIF here.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Write a Rerun recording of the episode to this .rrd file (images,
+    /// meshes and their poses, gripper, action arrows, joint and predictions
+    /// over steps). Needs a build with the `rerun` feature.
+    #[arg(long)]
+    pub rrd: Option<PathBuf>,
 }
 
 pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
@@ -54,9 +59,25 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         .steps
         .unwrap_or_else(|| a.protocol.budget(task, scene.category));
     let camera = Camera::reference(resolution.0, resolution.1);
+    let mut recorder = match &a.rrd {
+        Some(path) => Some(crate::rrd::Recorder::create(
+            path,
+            &format!("{} {:?}, seed {}", a.policy, task, a.object.seed),
+        )?),
+        None => None,
+    };
+    let mut record_error: Option<anyhow::Error> = None;
     let mut pictures: Vec<RgbImage> = Vec::new();
-    let mut hook = |t: usize, f: &Frame, step: Option<&Step>, pixel: (u32, u32)| {
-        pictures.push(step_picture(f, t, step, pixel));
+    let mut hook = |h: &HookFrame<'_>| {
+        if a.out.is_some() {
+            pictures.push(step_picture(h.frame, h.t, h.step, h.pixel));
+        }
+        if let Some(r) = recorder.as_mut()
+            && record_error.is_none()
+            && let Err(e) = r.log(h)
+        {
+            record_error = Some(e);
+        }
     };
     let ep = run_episode(
         &scene,
@@ -68,12 +89,18 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
             seed: a.object.seed,
             protocol: a.protocol,
         },
-        if a.out.is_some() {
+        if a.out.is_some() || a.rrd.is_some() {
             Some(&mut hook)
         } else {
             None
         },
     )?;
+    if let Some(e) = record_error {
+        return Err(e);
+    }
+    if let Some(r) = recorder {
+        r.finish()?;
+    }
     if let Some(out) = &a.out {
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         for (t, p) in pictures.iter().enumerate() {

@@ -8,6 +8,11 @@ mod objects_cmd;
 mod outdir;
 mod policies;
 mod render_cmd;
+#[cfg(feature = "rerun")]
+mod rrd;
+#[cfg(not(feature = "rerun"))]
+#[path = "rrd_disabled.rs"]
+mod rrd;
 mod text;
 
 use anyhow::Result;

@@ -5,7 +5,7 @@
     clippy::indexing_slicing,
     reason = "joint indices come from the model the counts were sized for"
 )]
-use crate::episode::{Episode, EpisodeConfig, run_episode};
+use crate::episode::{Episode, EpisodeConfig, FrameHook, run_episode};
 use crate::policy::Policy;
 use crate::protocol::Protocol;
 use crate::{EvalError, Result};
@@ -246,42 +246,10 @@ fn run_scene(
     category: Category,
     k: u32,
 ) -> Vec<EpisodeOutcome> {
-    let scene = benchmark_scene(
-        cfg.seed,
-        cfg.task,
-        category,
-        k,
-        cfg.dataset_seed,
-        cfg.physics,
-    );
-    let budget = cfg
-        .steps
-        .unwrap_or_else(|| cfg.protocol.budget(cfg.task, Some(category)));
     policies
         .iter()
-        .map(|(name, make)| {
-            let result = scene
-                .as_ref()
-                .map_err(|e| EvalError::Episode(e.to_string()))
-                .and_then(|scene| {
-                    let mut policy = make()?;
-                    let renderer = create_renderer(cfg.renderer)?;
-                    let seed = scene_seed(cfg.seed ^ 0x5EED, cfg.task, category, k);
-                    run_episode(
-                        scene,
-                        cfg.policy_cameras.get(name).unwrap_or(&cfg.camera),
-                        renderer,
-                        policy.as_mut(),
-                        EpisodeConfig {
-                            budget,
-                            seed,
-                            protocol: cfg.protocol,
-                        },
-                        None,
-                    )
-                    .map_err(|e| EvalError::Episode(format!("{e} (scene: {})", scene.to_json())))
-                });
-            match result {
+        .map(
+            |(name, make)| match run_one(cfg, name, make, category, k, None) {
                 Ok(ep) => EpisodeOutcome {
                     category,
                     index: k,
@@ -296,9 +264,50 @@ fn run_scene(
                     episode: None,
                     error: Some(e.to_string()),
                 },
-            }
-        })
+            },
+        )
         .collect()
+}
+
+/// One episode of the benchmark: `policy` on scene `k` of `category`, exactly
+/// as `run_benchmark` runs it (the same scene, seed, camera and budget), with
+/// an optional hook. Used to record chosen episodes again after a run.
+pub fn run_one(
+    cfg: &BenchConfig,
+    name: &str,
+    make: &PolicyFactory,
+    category: Category,
+    k: u32,
+    hook: Option<FrameHook>,
+) -> Result<Episode> {
+    let scene = benchmark_scene(
+        cfg.seed,
+        cfg.task,
+        category,
+        k,
+        cfg.dataset_seed,
+        cfg.physics,
+    )
+    .map_err(|e| EvalError::Episode(e.to_string()))?;
+    let budget = cfg
+        .steps
+        .unwrap_or_else(|| cfg.protocol.budget(cfg.task, Some(category)));
+    let mut policy = make()?;
+    let renderer = create_renderer(cfg.renderer)?;
+    let seed = scene_seed(cfg.seed ^ 0x5EED, cfg.task, category, k);
+    run_episode(
+        &scene,
+        cfg.policy_cameras.get(name).unwrap_or(&cfg.camera),
+        renderer,
+        policy.as_mut(),
+        EpisodeConfig {
+            budget,
+            seed,
+            protocol: cfg.protocol,
+        },
+        hook,
+    )
+    .map_err(|e| EvalError::Episode(format!("{e} (scene: {})", scene.to_json())))
 }
 
 /// The 95% Wilson score interval of a success rate (k successes of n): unlike

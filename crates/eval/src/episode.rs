@@ -62,8 +62,20 @@ pub struct Metrics {
     pub success: bool,
 }
 
-/// Hooks for pictures: called with each frame the policy saw.
-pub type FrameHook<'a> = &'a mut dyn FnMut(usize, &Frame, Option<&Step>, (u32, u32));
+/// What a hook sees after each action: the frame, the step that led to it
+/// (none for the grasp), the grasped pixel and the simulator itself (for
+/// link poses, joint values and the gripper).
+pub struct HookFrame<'a> {
+    /// 0 after the grasp, t after the t-th direction action.
+    pub t: usize,
+    pub frame: &'a Frame,
+    pub step: Option<&'a Step>,
+    pub pixel: (u32, u32),
+    pub env: &'a SimEnv,
+}
+
+/// Hooks for pictures and recordings: called after each action.
+pub type FrameHook<'a> = &'a mut dyn FnMut(&HookFrame<'_>);
 
 /// Runs one episode of `policy` on `scene` with a renderer of the caller's.
 pub fn run_episode(
@@ -105,7 +117,13 @@ pub fn run_episode(
     let mut ended_by_protocol = false;
     let mut frame = first;
     if let Some(h) = hook.as_mut() {
-        h(0, &frame, None, pixel);
+        h(&HookFrame {
+            t: 0,
+            frame: &frame,
+            step: None,
+            pixel,
+            env: &env,
+        });
     }
     if valid {
         for t in 0..budget {
@@ -146,7 +164,13 @@ pub fn run_episode(
             };
             if let Some(h) = hook.as_mut() {
                 let after = env.render()?;
-                h(t + 1, &after, Some(&step), pixel);
+                h(&HookFrame {
+                    t: t + 1,
+                    frame: &after,
+                    step: Some(&step),
+                    pixel,
+                    env: &env,
+                });
             }
             let done = protocol == Protocol::Paper
                 && joint.is_some_and(|j| paper_episode_over(scene, &env, j, &step));

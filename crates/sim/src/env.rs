@@ -132,7 +132,9 @@ impl SimEnv {
         self.art.joint_positions()
     }
 
-    fn part_transforms(&self) -> Vec<Mat4> {
+    /// World poses of the render parts: the links, then the floor, then the
+    /// gripper (all zeros while it holds nothing), as `render_meshes` orders them.
+    pub fn part_transforms(&self) -> Vec<Mat4> {
         let n = self.model.links.len();
         let mut t: Vec<Mat4> = (0..n)
             .map(|l| self.art.world_from_link(l).to_mat4())

@@ -80,6 +80,14 @@ pub struct EvalArgs {
     /// Replace the results a previous run left in --out.
     #[arg(long)]
     pub force: bool,
+    /// Write Rerun recordings of chosen episodes here, one .rrd per episode
+    /// (`{category}_{index}_{policy}.rrd`), replayed after the run and
+    /// checked to be the episodes evaluated. Needs the `rerun` feature.
+    #[arg(long)]
+    pub rrd: Option<PathBuf>,
+    /// With --rrd: record scenes 0..N of each category (of this shard), for every policy.
+    #[arg(long, default_value_t = 1, requires = "rrd")]
+    pub rrd_per_category: u32,
 }
 
 fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
@@ -203,6 +211,9 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         .as_deref()
         .map(|dir| crate::outdir::claim(dir, a.force, Report::FILES))
         .transpose()?;
+    if let Some(dir) = &a.rrd {
+        crate::rrd::check(dir)?;
+    }
     let scenes = cfg.scenes().len();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.map_or(0, usize::from))
@@ -247,7 +258,61 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
             .map(serde_json::to_value)
             .collect::<std::result::Result<_, _>>()?,
     };
-    finish(ctx, &report, a.out.as_deref(), scenes)
+    finish(ctx, &report, a.out.as_deref(), scenes)?;
+    if let Some(dir) = &a.rrd {
+        let n = record(&cfg, &policies, &outcomes, dir, a.rrd_per_category)?;
+        if !ctx.json {
+            println!("recorded {n} episodes to {}", dir.display());
+        }
+    }
+    Ok(())
+}
+
+/// Replays the chosen episodes with a Rerun recorder; each must be the
+/// episode the run evaluated, step for step.
+fn record(
+    cfg: &BenchConfig,
+    policies: &[(String, PolicyFactory)],
+    outcomes: &[umpnet_eval::bench::EpisodeOutcome],
+    dir: &Path,
+    per_category: u32,
+) -> Result<usize> {
+    let mut n = 0;
+    for (category, k) in cfg.scenes().into_iter().filter(|(_, k)| *k < per_category) {
+        for (name, make) in policies {
+            let path = dir.join(format!("{category}_{k}_{name}.rrd"));
+            let mut recorder =
+                crate::rrd::Recorder::create(&path, &format!("{name}: {category} #{k}"))?;
+            let mut failed: Option<anyhow::Error> = None;
+            let mut hook = |h: &umpnet_eval::episode::HookFrame<'_>| {
+                if failed.is_none()
+                    && let Err(e) = recorder.log(h)
+                {
+                    failed = Some(e);
+                }
+            };
+            let replayed =
+                umpnet_eval::bench::run_one(cfg, name, make, category, k, Some(&mut hook));
+            if let Some(e) = failed {
+                return Err(e);
+            }
+            recorder.finish()?;
+            let evaluated = outcomes
+                .iter()
+                .find(|o| o.category == category && o.index == k && &o.policy == name)
+                .and_then(|o| o.episode.as_ref());
+            if let (Ok(ep), Some(evaluated)) = (&replayed, evaluated)
+                && serde_json::to_value(ep)? != serde_json::to_value(evaluated)?
+            {
+                anyhow::bail!(
+                    "{}: the replayed episode differs from the evaluated one (a determinism bug)",
+                    path.display()
+                );
+            }
+            n += 1;
+        }
+    }
+    Ok(n)
 }
 
 /// Prints the report (a table, or the summary with --json) and writes its files.
