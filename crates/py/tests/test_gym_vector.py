@@ -5,7 +5,7 @@ import gymnasium as gym  # a requirement (train_py/requirements.txt), never skip
 import numpy as np
 import pytest
 import umpnet
-import umpnet.gym  # noqa: F401  (registers the ids)
+import umpnet.gym
 from gymnasium.vector import AutoresetMode
 from umpnet.gym import UmpnetEnv, UmpnetVectorEnv
 
@@ -108,12 +108,12 @@ def test_same_seed_same_vector_episodes():
 def test_mixed_step_refuses_bad_shapes_and_pixels_by_name():
     vec = umpnet.VecEnv(2, resolution=RES, category="Door")
     vec.reset()
-    ok = dict(
-        reset=np.zeros(2, bool),
-        phase=np.zeros(2, np.int64),
-        pixels=np.zeros((2, 2), np.int64),
-        directions=np.zeros((2, 3), np.float32),
-    )
+    ok = {
+        "reset": np.zeros(2, bool),
+        "phase": np.zeros(2, np.int64),
+        "pixels": np.zeros((2, 2), np.int64),
+        "directions": np.zeros((2, 3), np.float32),
+    }
     with pytest.raises(ValueError, match=r"phase has shape \[3\], expected \[2\]"):
         vec.step_mixed(**{**ok, "phase": np.zeros(3, np.int64)})
     with pytest.raises(ValueError, match="pixels row 1"):
