@@ -36,6 +36,11 @@ class Config:
     dense_states: int = 8  # states per dense batch (all their labels in one encoder pass)
     # Epsilon-greedy schedules: random actions (and no training of that network)
     # until `*_start_epoch`, then a linear decay over `*_decay_epochs`.
+    # Exploratory grasps: "released" (the released code's rule: a uniform pixel,
+    # kept above the floor or with probability 0.1) or "object" (a uniform
+    # object pixel: every grasp can move something; the smoke preset's, whose
+    # two epochs must collect moves).
+    random_grasp: str = "released"
     position_epsilon: tuple[float, float] = (1.0, 0.1)
     position_start_epoch: int = 500
     position_decay_epochs: int = 300
@@ -97,6 +102,7 @@ PRESETS = {
         "checkpoint_every": 50,
     },
     "smoke": {
+        "random_grasp": "object",
         "height": 48,
         "width": 64,
         "position_widths": (8, 16),

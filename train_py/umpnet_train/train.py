@@ -81,8 +81,17 @@ def random_pixel(image: np.ndarray, rng: np.random.Generator) -> int:
     return int(rng.integers(z.size))  # unreachable in practice: 0.9**10000
 
 
+OBJECT_SEGMENT = 1 << 16  # segment ids of object links start here
+
+
+def random_object_pixel(obs, i, rng):
+    """A uniform pixel on the object, or None when none is in view."""
+    mask = np.flatnonzero(obs["segmentation"][i].ravel() >= OBJECT_SEGMENT)
+    return int(rng.choice(mask)) if len(mask) else None
+
+
 @torch.no_grad()
-def choose_positions(model, obs, eps, rng):
+def choose_positions(model, obs, eps, rng, rule="released"):
     """Greedy: best affordance among pixels with depth; with probability `eps`
     (or when nothing has depth) a random pixel by the released code's rule."""
     n, _, w, _ = obs["image"].shape
@@ -91,7 +100,9 @@ def choose_positions(model, obs, eps, rng):
     pixels = np.zeros((n, 2), np.int64)
     for i in range(n):
         if rng.random() < eps or prob[i].max() < 0:
-            k = random_pixel(obs["image"][i], rng)
+            k = random_object_pixel(obs, i, rng) if rule == "object" else None
+            if k is None:
+                k = random_pixel(obs["image"][i], rng)
         else:
             k = int(prob[i].argmax())
         pixels[i] = divmod(int(k), w)
@@ -165,7 +176,7 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
     refs = [replay.add_reference(obs["reference"][i]) for i in range(len(env))]
     eps_pos = epsilon(cfg.position_epsilon, cfg.position_start_epoch, cfg.position_decay_epochs, epoch)
     eps_dir = epsilon(cfg.direction_epsilon, cfg.direction_start_epoch, cfg.direction_decay_epochs, epoch)
-    pixels = choose_positions(model, obs, eps_pos, rng)
+    pixels = choose_positions(model, obs, eps_pos, rng, cfg.random_grasp)
     # The environment's observation buffers are rewritten by every step: keep copies.
     first = obs["image"].copy()
     t0 = time.perf_counter()
