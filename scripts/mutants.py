@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 GYM = "crates/py/python/umpnet/gym.py"
 TRAIN = "train_py/umpnet_train/train.py"
 PYTEST = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:warnings"]
-GYM_TESTS = [*PYTEST, "crates/py/tests/test_bindings.py", "-k", "gym"]
+GYM_TESTS = [*PYTEST, "crates/py/tests/test_bindings.py", "crates/py/tests/test_gym_vector.py", "-k", "gym"]
 TRAINING = [*PYTEST, "train_py/tests/test_runtime_semantics.py", "train_py/tests/test_train.py"]
 CARGO = ["cargo", "test", "--release", "-q"]
 
@@ -47,17 +47,17 @@ MUTANTS = [
     ("RGB read as BGR", "crates/policy/src/observation.rs",
      "o[3] = rgb[0] as f32", "o[3] = rgb[2] as f32", [*CARGO, "-p", "umpnet-eval", "--test", "observation"], True),
     ("goal reward sign", GYM,
-     "reward = (abs(before - goal) - abs(after - goal)) / DELTA",
-     "reward = (abs(after - goal) - abs(before - goal)) / DELTA", GYM_TESTS, True),
+     "reward = (np.abs(before - goal) - np.abs(after - goal)) / DELTA",
+     "reward = (np.abs(after - goal) - np.abs(before - goal)) / DELTA", GYM_TESTS, True),
     ("exploration pays going back", GYM,
-     'reward = max(0.0, distance - g["farthest"]) / DELTA',
-     'reward = max(0.0, g["farthest"] - distance) / DELTA', GYM_TESTS, False),
+     "reward = np.maximum(0.0, distance - farthest) / DELTA",
+     "reward = np.maximum(0.0, farthest - distance) / DELTA", GYM_TESTS, False),
     ("goal never succeeds", GYM,
-     "return reward, bool(reached), bool(reached)",
-     "return reward, False, False", GYM_TESTS, False),
+     "return reward, reached, farthest",
+     "return reward, reached & False, farthest", GYM_TESTS, False),
     ("exploration ends only at the budget", GYM,
-     "return reward, bool(at_limit), bool(at_limit)",
-     "return reward, False, False", GYM_TESTS, False),
+     "return reward, at_limit, np.maximum(farthest, distance)",
+     "return reward, at_limit & False, np.maximum(farthest, distance)", GYM_TESTS, False),
     ("AoT class index reversed in the loss", TRAIN,
      "aot_t = to_long(aot + 1)",
      "aot_t = to_long(1 - aot)", TRAINING, False),
@@ -97,11 +97,12 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--ci", action="store_true", help="only the fixed subset that `make test` runs")
+    ap.add_argument("-k", dest="match", default="", help="only the mutants whose name contains this text")
     ap.add_argument("--timeout", type=int, default=900, help="seconds per mutant's test run")
     args = ap.parse_args(argv)
     results = []
     for name, rel, old, new, cmd, in_ci in MUTANTS:
-        if args.ci and not in_ci:
+        if (args.ci and not in_ci) or args.match not in name:
             continue
         path = ROOT / rel
         original = path.read_text()
