@@ -68,7 +68,23 @@ impl Sparse {
                 s.len += 1;
             }
         }
+        // A one-entry row repeats its index with a zero weight, so that the
+        // two-entry sweep (most rows) reads every row the same way.
+        if s.len == 1 {
+            s.index[1] = s.index[0];
+        }
         s
+    }
+    /// The first two entries: all of a row with `len <= 2`.
+    #[inline(always)]
+    fn pair(&self) -> ([usize; 2], [f64; 2]) {
+        (
+            [
+                self.index[0] as usize & (MAX_DOFS - 1),
+                self.index[1] as usize & (MAX_DOFS - 1),
+            ],
+            [self.value[0], self.value[1]],
+        )
     }
     #[inline(always)]
     fn dot(&self, x: &[f64; MAX_DOFS]) -> f64 {
@@ -91,6 +107,20 @@ impl Sparse {
 /// It stops early only once a sweep changes no speed measurably, which gives
 /// the same answer as running on.
 pub(crate) fn solve(rows: &mut [Row], x: &mut [f64; MAX_DOFS], sweeps: usize) {
+    if rows
+        .iter()
+        .all(|r| r.jacobian.len <= 2 && r.response.len <= 2 && r.lower <= r.upper)
+    {
+        solve_two_entry(rows, x, sweeps);
+    } else {
+        solve_general(rows, x, sweeps);
+    }
+}
+
+/// Below this a sweep counts as converged: no speed changes by more.
+const CONVERGED: f64 = 1e-7;
+
+fn solve_general(rows: &mut [Row], x: &mut [f64; MAX_DOFS], sweeps: usize) {
     let count = rows.len();
     for sweep in 0..sweeps.max(1) {
         let backward = sweep % 2 == 0;
@@ -109,17 +139,65 @@ pub(crate) fn solve(rows: &mut [Row], x: &mut [f64; MAX_DOFS], sweeps: usize) {
                 }
             }
         }
-        if largest < 1e-7 {
+        if largest < CONVERGED {
             break;
         }
     }
 }
 
-/// Inverse of a small symmetric positive definite matrix (Gauss-Jordan with
-/// partial pivoting); None when singular.
-pub(crate) fn invert(m: &[f64], n: usize) -> Option<Vec<f64>> {
-    let mut a = m.to_vec();
-    let mut inv = vec![0.0; n * n];
+/// The sweeps when every row touches at most two velocities: all rows of a
+/// one-joint chain, the common case. The sweeps are the reference profile's
+/// whole cost, and the general row's length dispatch was much of each
+/// update; here every row is the same straight-line arithmetic.
+fn solve_two_entry(rows: &mut [Row], x: &mut [f64; MAX_DOFS], sweeps: usize) {
+    let mut v = *x;
+    let update = |r: &mut Row, v: &mut [f64; MAX_DOFS], largest: &mut f64| {
+        let ([a, b], [ja, jb]) = r.jacobian.pair();
+        let jv = ja * v[a] + jb * v[b];
+        // Plain comparisons rather than clamp or max/min, whose NaN and
+        // bound checks lengthen the chain (the bounds were checked above).
+        let wanted = r.impulse + (r.target - jv) * r.effective_mass;
+        let next = if wanted < r.lower { r.lower } else { wanted };
+        let next = if next > r.upper { r.upper } else { next };
+        let change = next - r.impulse;
+        if change != 0.0 {
+            r.impulse = next;
+            let ([a, b], [ra, rb]) = r.response.pair();
+            v[a] += ra * change;
+            v[b] += rb * change;
+            let speed_change = (change * r.compliance).abs();
+            if speed_change > *largest {
+                *largest = speed_change;
+            }
+        }
+    };
+    for sweep in 0..sweeps.max(1) {
+        let mut largest = 0.0f64;
+        if sweep % 2 == 0 {
+            for r in rows.iter_mut().rev() {
+                update(r, &mut v, &mut largest);
+            }
+        } else {
+            for r in rows.iter_mut() {
+                update(r, &mut v, &mut largest);
+            }
+        }
+        if largest < CONVERGED {
+            break;
+        }
+    }
+    *x = v;
+}
+
+/// Inverse of a small symmetric positive definite matrix of order `n`
+/// (row-major in the first `n * n` entries; Gauss-Jordan with partial
+/// pivoting); None when singular or larger than the chain allows.
+pub(crate) fn invert<const N: usize>(m: &[f64; N], n: usize) -> Option<[f64; N]> {
+    if n * n > N {
+        return None;
+    }
+    let mut a = *m;
+    let mut inv = [0.0; N];
     for i in 0..n {
         inv[i * n + i] = 1.0;
     }
@@ -160,6 +238,7 @@ mod tests {
     fn invert_gives_the_inverse() {
         let m = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
         let inv = invert(&m, 3).expect("invertible");
+        assert!(invert(&m, 4).is_none(), "a 3x3 matrix has no order 4");
         for r in 0..3 {
             for c in 0..3 {
                 let v: f64 = (0..3).map(|k| m[r * 3 + k] * inv[k * 3 + c]).sum();
@@ -173,6 +252,77 @@ mod tests {
         let mut a = [0.0; MAX_DOFS];
         a[i] = v;
         a
+    }
+
+    /// A door-like system of rows with one or two entries: a light hinge
+    /// (index 0) held through a suction point by a 100 kg mount (1..4),
+    /// the rows in the reference's order (suction, motors, limits, brake).
+    fn door_rows(seed: u64) -> (Vec<Row>, [f64; MAX_DOFS]) {
+        let mut state = seed;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let inertia = 0.02 + 0.5 * uniform().abs();
+        let h = 1.0 / 240.0;
+        let mut rows = Vec::new();
+        let mut push = |jac: [f64; MAX_DOFS], target: f64, bound: (f64, f64)| {
+            let mut response = jac;
+            response[0] /= inertia;
+            for r in response.iter_mut().skip(1) {
+                *r /= 100.0;
+            }
+            rows.extend(Row::new(&jac, &response, target, bound.0, bound.1));
+        };
+        for i in 0..3 {
+            let mut jac = [0.0; MAX_DOFS];
+            // The lever about a vertical hinge has no vertical part.
+            jac[0] = if i == 2 { 0.0 } else { uniform() * 0.8 };
+            jac[1 + i] = -1.0;
+            push(jac, uniform() * 0.5, (-2000.0 * h, 2000.0 * h));
+        }
+        for i in 0..3 {
+            push(unit(1 + i, 1.0), uniform() * 0.1, (-1500.0 * h, 1500.0 * h));
+        }
+        push(unit(0, 1.0), uniform() * 2.0 - 1.0, (0.0, f64::INFINITY));
+        push(unit(0, -1.0), uniform() * 2.0 - 1.0, (0.0, f64::INFINITY));
+        push(unit(0, 1.0), 0.0, (-1.0, 1.0));
+        let mut x = [0.0; MAX_DOFS];
+        for v in x.iter_mut().take(4) {
+            *v = uniform() * 0.2;
+        }
+        (rows, x)
+    }
+
+    #[test]
+    fn the_two_entry_sweeps_equal_the_general_ones() {
+        for seed in 0..300 {
+            let (mut general, x0) = door_rows(seed);
+            let mut fast = general.clone();
+            assert!(
+                fast.iter().any(|r| r.jacobian.len == 1)
+                    && fast.iter().any(|r| r.jacobian.len == 2)
+            );
+            let (mut xg, mut xf) = (x0, x0);
+            solve_general(&mut general, &mut xg, 50);
+            solve_two_entry(&mut fast, &mut xf, 50);
+            assert_eq!(xg, xf, "seed {seed}");
+            let impulses = |rows: &[Row]| rows.iter().map(|r| r.impulse).collect::<Vec<_>>();
+            assert_eq!(impulses(&general), impulses(&fast), "seed {seed}");
+        }
+        // A row of three entries takes the general path.
+        let (mut rows, mut x) = door_rows(1);
+        rows.extend(Row::new(
+            &[1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            &[0.1, 0.1, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0],
+            0.3,
+            -1.0,
+            1.0,
+        ));
+        solve(&mut rows, &mut x, 50);
+        assert!(x.iter().all(|v| v.is_finite()));
     }
 
     #[test]

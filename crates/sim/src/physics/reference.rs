@@ -97,6 +97,9 @@ struct Suction {
     chain: Vec<usize>,
     /// For each chain joint, the links it moves.
     moved: Vec<Vec<usize>>,
+    /// The joints whose child the chain moves, parent first: all that an
+    /// update re-poses (a sibling part does not move).
+    reposed: Vec<usize>,
 }
 
 #[derive(Clone)]
@@ -217,7 +220,13 @@ impl ReferenceArticulation {
         if chain.len() > MAX_CHAIN {
             chain.drain(..chain.len() - MAX_CHAIN);
         }
-        let moved = chain.iter().map(|&j| moved_links(&self.model, j)).collect();
+        let moved: Vec<Vec<usize>> = chain.iter().map(|&j| moved_links(&self.model, j)).collect();
+        let reposed = match moved.first() {
+            Some(links) => (0..self.model.joints.len())
+                .filter(|&j| links.contains(&self.model.joints[j].child))
+                .collect(),
+            None => Vec::new(),
+        };
         let point_in_link = self.world_from_link[link].inverse_transform_point(point_in_world);
         if let Some(m) = self.mount.as_mut() {
             m.suction = Some(Suction {
@@ -225,6 +234,7 @@ impl ReferenceArticulation {
                 point_in_link,
                 chain,
                 moved,
+                reposed,
             });
         }
         Ok(())
@@ -371,7 +381,7 @@ impl ReferenceArticulation {
             // Guards a massless chain; far below any real link's inertia.
             mass[a * n + a] += 1e-9;
         }
-        let Some(inv_mass) = invert(&mass[..n * n], n) else {
+        let Some(inv_mass) = invert(&mass, n) else {
             return;
         };
 
@@ -468,22 +478,28 @@ impl ReferenceArticulation {
             self.qd[j] = v;
             self.q[j] += v * h;
         }
-        if let Some(m) = self.mount.as_mut() {
+        let suction = self.mount.as_mut().and_then(|m| {
             m.velocity = Vec3::new(x[n] as f32, x[n + 1] as f32, x[n + 2] as f32);
             m.position += m.velocity * h;
+            m.suction.as_mut()
+        });
+        // Taken out and put back (no allocation) to re-pose through &mut self.
+        let reposed = suction
+            .map(|s| std::mem::take(&mut s.reposed))
+            .unwrap_or_default();
+        self.repose(&reposed);
+        if let Some(s) = self.mount.as_mut().and_then(|m| m.suction.as_mut()) {
+            s.reposed = reposed;
         }
-        self.refresh_chain(chain);
     }
 
-    /// Re-poses the links below the first chain joint (the rest did not move).
-    fn refresh_chain(&mut self, chain: &[usize]) {
-        if chain.is_empty() {
-            return;
-        }
-        for (j, joint) in self.model.joints.iter().enumerate() {
-            if j < chain[0] {
+    /// Re-poses the children of `joints` (parent first): the links the
+    /// grasped chain moves; the rest did not move.
+    fn repose(&mut self, joints: &[usize]) {
+        for &j in joints {
+            let Some(joint) = self.model.joints.get(j) else {
                 continue;
-            }
+            };
             self.world_from_link[joint.child] = self.world_from_link[joint.parent]
                 * joint.parent_from_joint
                 * joint_motion(joint.kind, joint.axis_in_joint, self.q[j]);
