@@ -303,17 +303,10 @@ fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> 
                     1,
                 );
             }
-            // The executed direction's own prediction: the candidate it is
-            // (within float rounding of the normalisation it went through).
-            let executed = Vec3::from(s.record.direction).normalize_or_zero();
+            // The executed direction's own prediction, if it is a candidate.
             predicted = c
-                .directions
-                .iter()
-                .enumerate()
-                .map(|(k, d)| (k, Vec3::from(*d).normalize_or_zero().dot(executed)))
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-                .filter(|(_, cos)| *cos > 0.9999)
-                .and_then(|(k, _)| Some((*c.distance.get(k)?, *c.aot.get(k)?)));
+                .index_of(Vec3::from(s.record.direction))
+                .and_then(|k| Some((*c.distance.get(k)?, *c.aot.get(k)?)));
         }
         images::draw_arrow(
             &mut img,

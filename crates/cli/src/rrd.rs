@@ -184,15 +184,7 @@ impl Recorder {
             )
             .map_err(&err)?;
             // The executed direction's own prediction, if it is a candidate.
-            let own = c
-                .directions
-                .iter()
-                .enumerate()
-                .map(|(k, v)| (k, Vec3::from(*v).normalize_or_zero().dot(executed)))
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-                .filter(|(_, cos)| *cos > 0.9999)
-                .map(|(k, _)| k);
-            if let Some(k) = own {
+            if let Some(k) = c.index_of(executed) {
                 rec.log(
                     "plot/predicted_distance",
                     &rerun::Scalars::single(f64::from(d(k))),

@@ -22,6 +22,22 @@ pub struct Candidates {
     pub aot: Vec<i8>,
 }
 
+impl Candidates {
+    /// The index of the candidate that `executed` is, if any: the same
+    /// direction within the float rounding of the normalisation it went
+    /// through on its way to the simulator (cosine above 0.9999).
+    pub fn index_of(&self, executed: Vec3) -> Option<usize> {
+        let executed = executed.normalize_or_zero();
+        self.directions
+            .iter()
+            .enumerate()
+            .map(|(k, d)| (k, Vec3::from(*d).normalize_or_zero().dot(executed)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(|(_, cos)| *cos > 0.9999)
+            .map(|(k, _)| k)
+    }
+}
+
 pub enum Decision {
     Move {
         direction: Vec3,
@@ -51,4 +67,25 @@ pub trait Policy: Send {
         env: &SimEnv,
         history: &[StepRecord],
     ) -> Result<Decision>;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_executed_direction_is_found_among_the_candidates() {
+        let c = Candidates {
+            directions: vec![[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, -1.0]],
+            distance: vec![0.1, 0.2, 0.3],
+            aot: vec![1, -1, 0],
+        };
+        // Unnormalised and rounded on the way: still the same candidate.
+        assert_eq!(c.index_of(Vec3::new(0.0, 0.5, 1e-4)), Some(1));
+        assert_eq!(c.index_of(Vec3::new(0.0, 0.0, -3.0)), Some(2));
+        // Between candidates, or nothing at all: none of them.
+        assert_eq!(c.index_of(Vec3::new(1.0, 1.0, 0.0)), None);
+        assert_eq!(c.index_of(Vec3::ZERO), None);
+        assert_eq!(Candidates::default().index_of(Vec3::X), None);
+    }
 }
