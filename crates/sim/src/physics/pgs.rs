@@ -68,11 +68,6 @@ impl Sparse {
                 s.len += 1;
             }
         }
-        // A one-entry row repeats its index with a zero weight, so that the
-        // two-entry sweep (most rows) reads every row the same way.
-        if s.len == 1 {
-            s.index[1] = s.index[0];
-        }
         s
     }
     /// The first two entries: all of a row with `len <= 2`.
@@ -153,7 +148,10 @@ fn solve_two_entry(rows: &mut [Row], x: &mut [f64; MAX_DOFS], sweeps: usize) {
     let mut v = *x;
     let update = |r: &mut Row, v: &mut [f64; MAX_DOFS], largest: &mut f64| {
         let ([a, b], [ja, jb]) = r.jacobian.pair();
-        let jv = ja * v[a] + jb * v[b];
+        // A second entry only where there is one: a zero-weight read of a
+        // slot another row writes would chain the rows together.
+        let two = r.jacobian.len == 2;
+        let jv = if two { ja * v[a] + jb * v[b] } else { ja * v[a] };
         // Plain comparisons rather than clamp or max/min, whose NaN and
         // bound checks lengthen the chain (the bounds were checked above).
         let wanted = r.impulse + (r.target - jv) * r.effective_mass;
@@ -164,7 +162,9 @@ fn solve_two_entry(rows: &mut [Row], x: &mut [f64; MAX_DOFS], sweeps: usize) {
             r.impulse = next;
             let ([a, b], [ra, rb]) = r.response.pair();
             v[a] += ra * change;
-            v[b] += rb * change;
+            if r.response.len == 2 {
+                v[b] += rb * change;
+            }
             let speed_change = (change * r.compliance).abs();
             if speed_change > *largest {
                 *largest = speed_change;
