@@ -37,7 +37,7 @@ fixture: install
 demo: build
 	$(UMPNET) objects generate --out data/objects --per-category 20 --force
 	$(UMPNET) explore --category Microwave --seed 3 --policy umpnet --out out/explore-umpnet
-	$(UMPNET) goal --category Door --seed 2 --policy umpnet --out out/goal-umpnet
+	$(UMPNET) goal --category Door --seed 0 --policy umpnet --out out/goal-umpnet
 	$(UMPNET) explore --category StorageFurniture --seed 1 --policy oracle --out out/explore-oracle
 	$(UMPNET) eval --task exploration --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-exploration --force
 	$(UMPNET) eval --task goal --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-goal --force
