@@ -151,7 +151,11 @@ fn solve_two_entry(rows: &mut [Row], x: &mut [f64; MAX_DOFS], sweeps: usize) {
         // A second entry only where there is one: a zero-weight read of a
         // slot another row writes would chain the rows together.
         let two = r.jacobian.len == 2;
-        let jv = if two { ja * v[a] + jb * v[b] } else { ja * v[a] };
+        let jv = if two {
+            ja * v[a] + jb * v[b]
+        } else {
+            ja * v[a]
+        };
         // Plain comparisons rather than clamp or max/min, whose NaN and
         // bound checks lengthen the chain (the bounds were checked above).
         let wanted = r.impulse + (r.target - jv) * r.effective_mass;
