@@ -478,31 +478,25 @@ impl ReferenceArticulation {
             self.qd[j] = v;
             self.q[j] += v * h;
         }
-        let suction = self.mount.as_mut().and_then(|m| {
+        if let Some(m) = self.mount.as_mut() {
             m.velocity = Vec3::new(x[n] as f32, x[n + 1] as f32, x[n + 2] as f32);
             m.position += m.velocity * h;
-            m.suction.as_mut()
-        });
-        // Taken out and put back (no allocation) to re-pose through &mut self.
-        let reposed = suction
-            .map(|s| std::mem::take(&mut s.reposed))
-            .unwrap_or_default();
-        self.repose(&reposed);
-        if let Some(s) = self.mount.as_mut().and_then(|m| m.suction.as_mut()) {
-            s.reposed = reposed;
+        }
+        if let Some(s) = self.mount.as_ref().and_then(|m| m.suction.as_ref()) {
+            repose(&self.model, &self.q, &mut self.world_from_link, &s.reposed);
         }
     }
+}
 
-    /// Re-poses the children of `joints` (parent first): the links the
-    /// grasped chain moves; the rest did not move.
-    fn repose(&mut self, joints: &[usize]) {
-        for &j in joints {
-            let Some(joint) = self.model.joints.get(j) else {
-                continue;
-            };
-            self.world_from_link[joint.child] = self.world_from_link[joint.parent]
-                * joint.parent_from_joint
-                * joint_motion(joint.kind, joint.axis_in_joint, self.q[j]);
-        }
+/// Re-poses the children of `joints` (parent first): the links the grasped
+/// chain moves; the rest did not move.
+fn repose(model: &ObjectModel, q: &[f32], world_from_link: &mut [Pose3], joints: &[usize]) {
+    for &j in joints {
+        let (Some(joint), Some(&qj)) = (model.joints.get(j), q.get(j)) else {
+            continue;
+        };
+        let parent = world_from_link[joint.parent];
+        world_from_link[joint.child] =
+            parent * joint.parent_from_joint * joint_motion(joint.kind, joint.axis_in_joint, qj);
     }
 }
