@@ -1,6 +1,7 @@
 """The training pipeline end to end on the smoke preset: train, checkpoint,
 resume, export, and load the package from Rust."""
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 import umpnet
 from umpnet_train import train
-from umpnet_train.config import make_config
+from umpnet_train.config import config_from_checkpoint, make_config
 from umpnet_train.replay import Replay
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -25,6 +26,13 @@ def test_presets_and_config_errors():
         make_config("huge")
     with pytest.raises(ValueError, match="unknown config fields"):
         make_config("smoke", lr_typo=1.0)
+    with pytest.raises(ValueError, match="random_grasp 'objects': expected 'released' or 'object'"):
+        make_config("smoke", random_grasp="objects")
+    # A checkpoint from before the field resumes with the grasps it was trained with.
+    saved = dataclasses.asdict(make_config("cpu-small"))
+    assert config_from_checkpoint(saved).random_grasp == "released"
+    del saved["random_grasp"]
+    assert config_from_checkpoint(saved).random_grasp == "object"
 
 
 def test_direction_widths_flag(capsys):

@@ -34,13 +34,13 @@ class Config:
     # 0: only the executed action, as the paper.
     dense_labels: int = 0
     dense_states: int = 8  # states per dense batch (all their labels in one encoder pass)
-    # Epsilon-greedy schedules: random actions (and no training of that network)
-    # until `*_start_epoch`, then a linear decay over `*_decay_epochs`.
     # Exploratory grasps: "released" (the released code's rule: a uniform pixel,
     # kept above the floor or with probability 0.1) or "object" (a uniform
     # object pixel: every grasp can move something; the smoke preset's, whose
     # two epochs must collect moves).
     random_grasp: str = "released"
+    # Epsilon-greedy schedules: random actions (and no training of that network)
+    # until `*_start_epoch`, then a linear decay over `*_decay_epochs`.
     position_epsilon: tuple[float, float] = (1.0, 0.1)
     position_start_epoch: int = 500
     position_decay_epochs: int = 300
@@ -133,6 +133,8 @@ def make_config(preset: str = "paper", **overrides) -> Config:
     unknown = set(values) - names
     if unknown:
         raise ValueError(f"unknown config fields {sorted(unknown)}")
+    if values.get("random_grasp", "released") not in ("released", "object"):
+        raise ValueError(f"random_grasp {values['random_grasp']!r}: expected 'released' or 'object'")
     if values.get("direction_net", "context") not in ("context", "plain"):
         raise ValueError(f"direction_net {values['direction_net']!r}: expected 'context' or 'plain'")
     if values.get("labels", "reference") not in ("reference", "delta"):
@@ -150,6 +152,7 @@ _BEFORE_FIELDS = {
     "position_start_epoch": 0,
     "direction_start_epoch": 0,
     "adam_betas": (0.9, 0.999),
+    "random_grasp": "object",
 }
 
 
