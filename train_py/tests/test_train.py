@@ -327,3 +327,53 @@ def test_random_grasps_follow_the_released_rule():
     assert abs(on_floor - 1 / 11) < 0.01, on_floor
     # Every pixel can be chosen, the floor's too.
     assert np.bincount(picks, minlength=80).min() > 0
+
+
+def test_position_from_another_run_stays_fixed_while_the_direction_nets_train(tmp_path, capsys):
+    import torch
+
+    donor, run = tmp_path / "donor", tmp_path / "run"
+    assert train.main(["--preset", "smoke", "--out", str(donor), "--epochs", "2", "--seed", "1"]) == 0
+    assert train.main(["--preset", "smoke", "--out", str(run), "--epochs", "2"]) == 0
+    before = torch.load(run / "checkpoint.pt", weights_only=False)
+    donor_ck = torch.load(donor / "checkpoint.pt", weights_only=False)
+    args = [
+        "--preset",
+        "smoke",
+        "--out",
+        str(run),
+        "--epochs",
+        "4",
+        "--resume",
+        "--position-from",
+        str(donor / "checkpoint.pt"),
+    ]
+    assert train.main(args) == 0
+    after = torch.load(run / "checkpoint.pt", weights_only=False)
+    for k, v in after["model"].items():
+        if k.startswith("position."):
+            assert torch.equal(v, donor_ck["model"][k]), k  # weights and BatchNorm statistics
+    changed = [
+        k for k, v in after["model"].items() if k.startswith("encoder.") and not torch.equal(v, before["model"][k])
+    ]
+    assert changed, "the direction nets did not train"
+    assert after["config"]["freeze_position"] is True
+    assert after["provenance"]["position_from"]["checkpoint"] == str(donor / "checkpoint.pt")
+    assert after["provenance"]["position_from"]["epochs"] == 2
+    capsys.readouterr()
+    # A missing file, a file that is not a checkpoint, another architecture: named, exit 2.
+    junk = tmp_path / "junk.pt"
+    junk.write_text("not a checkpoint")
+    from umpnet_train.models import UMPNet
+
+    wide = tmp_path / "wide.pt"
+    cfg = make_config("cpu-small")
+    torch.save({"model": UMPNet(cfg).state_dict(), "config": dataclasses.asdict(cfg)}, wide)
+    for path, message in [
+        (tmp_path / "missing.pt", "no such file"),
+        (junk, "cannot be read as a checkpoint"),
+        (wide, "widths (8, 16, 32)) does not match this run's ([8, 16])"),
+    ]:
+        assert train.main([*args[:-1], str(path)]) == 2
+        err = capsys.readouterr().err
+        assert f"--position-from {path}" in err and message in err, err

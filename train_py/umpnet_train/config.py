@@ -39,6 +39,9 @@ class Config:
     # object pixel: every grasp can move something; the smoke preset's, whose
     # two epochs must collect moves).
     random_grasp: str = "released"
+    # The position net is not trained: its weights come from another run's checkpoint
+    # (train --position-from), and the direction nets learn from that net's grasps.
+    freeze_position: bool = False
     # Epsilon-greedy schedules: random actions (and no training of that network)
     # until `*_start_epoch`, then a linear decay over `*_decay_epochs`.
     position_epsilon: tuple[float, float] = (1.0, 0.1)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import pickle
 import shlex
 import subprocess
 import sys
@@ -309,6 +310,35 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
     return out
 
 
+def load_position(model: UMPNet, widths, path: Path) -> dict:
+    """Copy the position net's weights from the checkpoint at `path` into
+    `model` and stop their training. Returns where they came from (for the
+    provenance)."""
+    try:
+        ck = torch.load(path, map_location=DEVICE, weights_only=False)
+    except FileNotFoundError:
+        raise ValueError("no such file") from None
+    except (OSError, EOFError, RuntimeError, ValueError, pickle.UnpicklingError) as e:
+        raise ValueError(f"cannot be read as a checkpoint ({type(e).__name__}: {e})") from None
+    if not isinstance(ck, dict) or "model" not in ck:
+        raise ValueError("not a training checkpoint (no 'model' entry)")
+    prefix = "position."
+    weights = {k[len(prefix) :]: v for k, v in ck["model"].items() if k.startswith(prefix)}
+    ours = model.position.state_dict()
+    if weights.keys() != ours.keys() or any(weights[k].shape != ours[k].shape for k in ours):
+        theirs = ck.get("config", {}).get("position_widths", "unknown")
+        raise ValueError(f"its position net (widths {theirs}) does not match this run's ({list(widths)})")
+    model.position.load_state_dict(weights)
+    model.position.requires_grad_(False)
+    prov = ck.get("provenance", {})
+    return {
+        "checkpoint": str(path),
+        "epochs": ck.get("epoch"),
+        "command": prov.get("command"),
+        "git_commit": prov.get("git_commit"),
+    }
+
+
 def git_commit() -> str:
     try:
         return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
@@ -340,6 +370,13 @@ def parse_args(argv=None):
         metavar="LR",
         help="with --resume: set the learning rate to LR from the resumed epoch on (the step decay "
         "continues from there); for fine-tuning after a change to the simulator",
+    )
+    p.add_argument(
+        "--position-from",
+        type=Path,
+        metavar="CHECKPOINT",
+        help="take the position net's weights from CHECKPOINT (same architecture) and do not train it: "
+        "the direction nets then learn from that net's grasps; pass it again when resuming",
     )
     p.add_argument("--variant", choices=["umpnet", "single-step", "aot-only", "signed-dist", "where2act", "inverse"])
     p.add_argument("--epochs", type=int)
@@ -400,6 +437,7 @@ def parse_args(argv=None):
         save_replay=a.save_replay,
         direction_widths=_widths(p, a.direction_widths),
         direction_net=a.direction_net,
+        freeze_position=True if a.position_from is not None else None,
     )
     return cfg, a
 
@@ -485,6 +523,14 @@ def main(argv=None) -> int:
         rng.bit_generator.state = ck["numpy_rng"]
         torch.set_rng_state(ck["torch_rng"])
         start, wall_before = ck["epoch"], ck["provenance"]["wall_seconds"]
+    position_from = None
+    if args.position_from is not None:
+        try:
+            position_from = load_position(model, cfg.position_widths, args.position_from)
+        except ValueError as e:
+            print(f"error: --position-from {args.position_from}: {e}", file=sys.stderr)
+            return 2
+        print(f"position net from {args.position_from} (epoch {position_from.get('epochs')}), not trained")
     categories = cfg.categories or TRAIN_CATEGORIES
     env, collection = None, None
     if args.ray:
@@ -546,6 +592,7 @@ def main(argv=None) -> int:
             "trained_on": {"categories": categories, "split": "train instances", "physics": cfg.physics},
             "collection": f"ray, {args.ray} actors" if args.ray else "local",
             "torch": torch.__version__,
+            **({"position_from": position_from} if position_from is not None else {}),
         }
 
     bar = tqdm(
@@ -563,7 +610,7 @@ def main(argv=None) -> int:
         for _ in range(cfg.iterations_per_epoch):
             out_l = losses(
                 model, cfg, replay, dense, rng,
-                train_position=epoch >= cfg.position_start_epoch,
+                train_position=epoch >= cfg.position_start_epoch and not cfg.freeze_position,
                 train_direction=epoch >= cfg.direction_start_epoch,
             )  # fmt: skip
             if out_l["loss/total"].requires_grad:  # nothing to train during the warm-up
