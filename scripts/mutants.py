@@ -29,6 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 GYM = "crates/py/python/umpnet/gym.py"
 TRAIN = "train_py/umpnet_train/train.py"
+COLLECT = "train_py/umpnet_train/collect.py"
 PYTEST = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:warnings"]
 GYM_TESTS = [*PYTEST, "crates/py/tests/test_bindings.py", "crates/py/tests/test_gym_vector.py", "-k", "gym"]
 TRAINING = [*PYTEST, "train_py/tests/test_runtime_semantics.py", "train_py/tests/test_train.py"]
@@ -67,13 +68,13 @@ MUTANTS = [
     ("dense classes weighted by count, not balanced", TRAIN,
      "return (1.0 / counts.clamp(min=1))[groups] / present",
      "return counts[groups] / counts.sum()", TRAINING, False),
-    ("exploration picks backward candidates", TRAIN,
+    ("exploration picks backward candidates", COLLECT,
      "k = {1: 2, -1: 0, 0: None}[w]",
      "k = {1: 0, -1: 2, 0: None}[w]", TRAINING, False),
-    ("contradictory policy never turns back", TRAIN,
+    ("contradictory policy never turns back", COLLECT,
      "return np.where(turn, -1, heading)",
      "return np.where(turn, 1, heading)", TRAINING, False),
-    ("no random warm-up", TRAIN,
+    ("no random warm-up", COLLECT,
      "    if epoch < start_epoch:\n        return 1.0",
      "    if epoch < start_epoch:\n        return 0.0", TRAINING, False),
 ]  # fmt: skip

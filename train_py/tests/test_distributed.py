@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 import umpnet
-from umpnet_train import train
+from umpnet_train import collect, train
 from umpnet_train.config import make_config
 from umpnet_train.distributed import Recorder, merge_stats, new_stats, replay_into, split_envs
 from umpnet_train.models import UMPNet
@@ -26,7 +26,7 @@ def _collect(cfg, replay, dense, seed=5):
     env = umpnet.VecEnv(6, category=["Microwave", "Refrigerator", "StorageFurniture"], split="train", seed=seed,
                         resolution=(cfg.height, cfg.width), renderer="cpu")  # fmt: skip
     stats = new_stats()
-    train.collect(env, model, cfg, replay, dense, 0, np.random.default_rng(seed), stats)
+    collect.collect(env, model, cfg, replay, dense, 0, np.random.default_rng(seed), stats)
     return stats
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 import umpnet
-from umpnet_train import train
+from umpnet_train import collect, train
 from umpnet_train.config import make_config
 from umpnet_train.export import export_model
 from umpnet_train.models import UMPNet
@@ -138,7 +138,7 @@ def test_training_explores_with_the_wanted_arrow_of_time():
         "gripper_pixel": np.full((n, 2), 5, np.int64),
     }
     for wanted, sign in ((1, 1.0), (-1, -1.0)):
-        dirs, ranked = train.choose_directions(model, "umpnet", obs, np.full(n, wanted), 0.0, rng)
+        dirs, ranked = collect.choose_directions(model, "umpnet", obs, np.full(n, wanted), 0.0, rng)
         assert np.all(sign * dirs[:, 0] > 0.1), (wanted, dirs)
         assert np.all(sign * ranked[:, 0, 0] > 0.1)
 
@@ -160,8 +160,8 @@ def test_the_distance_loss_reaches_the_distance_head():
 def test_the_contradictory_policy_turns_at_the_boundary_or_half_way_and_stays_back():
     h = np.array([1, 1, 1, -1])
     boundary = np.array([False, True, False, False])
-    assert train.contradictory_heading(h, 0, 8, boundary).tolist() == [1, -1, 1, -1]
+    assert collect.contradictory_heading(h, 0, 8, boundary).tolist() == [1, -1, 1, -1]
     # After half the sequence (step 4 of 8) everything heads back.
-    assert train.contradictory_heading(h, 3, 8, np.zeros(4, bool)).tolist() == [-1, -1, -1, -1]
+    assert collect.contradictory_heading(h, 3, 8, np.zeros(4, bool)).tolist() == [-1, -1, -1, -1]
     # Back stays back, even at a boundary.
-    assert train.contradictory_heading(np.array([-1]), 5, 8, np.array([True])).tolist() == [-1]
+    assert collect.contradictory_heading(np.array([-1]), 5, 8, np.array([True])).tolist() == [-1]

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import umpnet
-from umpnet_train import train
+from umpnet_train import collect, train
 from umpnet_train.config import config_from_checkpoint, make_config
 from umpnet_train.replay import Replay
 
@@ -45,14 +45,14 @@ def test_direction_widths_flag(capsys):
 
 def test_curriculum_and_schedules():
     cfg = make_config("paper")
-    assert train.sequence_length(cfg, 0) == 4 and train.sequence_length(cfg, 999) == 4
-    assert train.sequence_length(cfg, 1000) == 6 and train.sequence_length(cfg, 1400) == 8
-    assert train.sequence_length(cfg, 10**6) == 20
-    assert train.epsilon((1.0, 0.1), 0, 300, 0) == 1.0 and abs(train.epsilon((1.0, 0.1), 0, 300, 150) - 0.55) < 1e-9
-    assert train.epsilon((1.0, 0.1), 0, 300, 301) == 0.1
+    assert collect.sequence_length(cfg, 0) == 4 and collect.sequence_length(cfg, 999) == 4
+    assert collect.sequence_length(cfg, 1000) == 6 and collect.sequence_length(cfg, 1400) == 8
+    assert collect.sequence_length(cfg, 10**6) == 20
+    assert collect.epsilon((1.0, 0.1), 0, 300, 0) == 1.0 and abs(collect.epsilon((1.0, 0.1), 0, 300, 150) - 0.55) < 1e-9
+    assert collect.epsilon((1.0, 0.1), 0, 300, 301) == 0.1
     # The reference's warm-up: random until the start epoch, then the decay.
-    assert train.epsilon((1.0, 0.2), 800, 500, 799) == 1.0
-    assert abs(train.epsilon((1.0, 0.2), 800, 500, 1050) - 0.6) < 1e-9
+    assert collect.epsilon((1.0, 0.2), 800, 500, 799) == 1.0
+    assert abs(collect.epsilon((1.0, 0.2), 800, 500, 1050) - 0.6) < 1e-9
 
 
 def test_replay_balances_classes_and_drops_stale_references():
@@ -248,8 +248,8 @@ def test_dense_batches_weigh_each_aot_class_equally():
 
     w = train.class_weights(torch.tensor([0, 0, 0, 2]), 3)
     np.testing.assert_allclose(w.numpy(), [1 / 6, 1 / 6, 1 / 6, 1 / 2])
-    ranked = train.unit(np.random.default_rng(0).normal(size=(2, 10, 3))).astype(np.float32)
-    dirs = train.dense_directions(ranked, 6, np.random.default_rng(1))
+    ranked = collect.unit(np.random.default_rng(0).normal(size=(2, 10, 3))).astype(np.float32)
+    dirs = collect.dense_directions(ranked, 6, np.random.default_rng(1))
     assert dirs.shape == (2, 6, 3)
     np.testing.assert_array_equal(dirs[:, :3], ranked[:, :3])  # the policy's best half first
     np.testing.assert_allclose(np.linalg.norm(dirs, axis=-1), 1.0, rtol=1e-5)
@@ -322,7 +322,7 @@ def test_random_grasps_follow_the_released_rule():
     image[:, :5, 2] = 0.2
     image[:, 5:, 2] = 0.001  # below the 5 mm clearance: still floor
     rng = np.random.default_rng(0)
-    picks = np.array([train.random_pixel(image, rng) for _ in range(20_000)])
+    picks = np.array([collect.random_pixel(image, rng) for _ in range(20_000)])
     on_floor = (picks % 10 >= 5).mean()
     assert abs(on_floor - 1 / 11) < 0.01, on_floor
     # Every pixel can be chosen, the floor's too.

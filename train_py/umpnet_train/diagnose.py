@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import umpnet
 
-from .train import TRAIN_CATEGORIES
+from .collect import TRAIN_CATEGORIES
 
 TEST_CATEGORIES = [name for name, split, _ in umpnet.categories() if split == "test"]
 BUDGETS = {name: budget for name, _, budget in umpnet.categories()}

@@ -110,7 +110,7 @@ class Collector:
         )
 
     def collect(self, weights: dict, epoch: int) -> tuple[list[tuple], dict]:
-        from .train import collect
+        from .collect import collect
 
         self.model.load_state_dict(weights)
         recorder, stats = Recorder(), new_stats()
