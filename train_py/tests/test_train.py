@@ -84,6 +84,9 @@ def test_smoke_training_resume_export_and_rust_load(tmp_path):
     assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "3", "--resume", "--export", str(pkg)]) == 0
     meta = json.loads((pkg / "model.json").read_text())
     assert meta["provenance"]["epochs"] == 3 and meta["provenance"]["seed"] == 0
+    segments = meta["provenance"]["segments"]
+    assert [seg["from_epoch"] for seg in segments] == [0, 2]  # the first run and its resume
+    assert all(seg["git_commit"] == meta["provenance"]["git_commit"] for seg in segments)
     assert meta["export_check"]["max_abs_diff_onnx_vs_torch"] < 1e-3
     pol = umpnet.Policy(str(pkg))
     assert pol.resolution == (48, 64)

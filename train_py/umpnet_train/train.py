@@ -144,10 +144,20 @@ def load_position(model: UMPNet, widths, path: Path) -> dict:
 
 
 def git_commit() -> str:
+    """The commit the training code runs from, with "-dirty" when that code
+    has uncommitted changes (the commit alone would then not reproduce it)."""
+    here = Path(__file__).resolve().parent
     try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        changed = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", "."],
+            cwd=here, capture_output=True, text=True, check=True,
+        ).stdout.strip()  # fmt: skip
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
+    return f"{head}-dirty" if changed else head
 
 
 def _widths(parser, text):
@@ -299,6 +309,7 @@ def main(argv=None) -> int:
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=tuple(cfg.adam_betas))
     sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_decay_every, gamma=cfg.lr_decay)
     start, wall_before = 0, 0.0
+    segments = []  # each invocation of a run: the epoch it started at and its code's commit
     ckpt_path = out / "checkpoint.pt"
     if args.restart_lr is not None and not (args.resume and 0 < args.restart_lr < 1):
         print(f"error: --restart-lr {args.restart_lr}: needs --resume and a rate in (0, 1)", file=sys.stderr)
@@ -328,6 +339,7 @@ def main(argv=None) -> int:
         rng.bit_generator.state = ck["numpy_rng"]
         torch.set_rng_state(ck["torch_rng"])
         start, wall_before = ck["epoch"], ck["provenance"]["wall_seconds"]
+        segments = ck["provenance"].get("segments", [])
     position_from = None
     if args.position_from is not None:
         try:
@@ -383,6 +395,8 @@ def main(argv=None) -> int:
         "dense_labels": 0, "aot_counts": [0, 0, 0],
     }  # fmt: skip
     t_start = time.perf_counter()
+    commit = git_commit()  # now, not at each checkpoint: the code may be edited while a run goes on
+    segments = [*segments, {"from_epoch": start, "git_commit": commit}]
 
     def provenance(epoch):
         wall = wall_before + time.perf_counter() - t_start
@@ -390,7 +404,8 @@ def main(argv=None) -> int:
             "command": command,
             "seed": cfg.seed,
             "preset": args.preset,
-            "git_commit": git_commit(),
+            "git_commit": commit,
+            "segments": segments,
             "epochs": epoch,
             "wall_seconds": wall,
             "simulation_share": stats["sim_s"] / max(stats["sim_s"] + stats["learn_s"], 1e-9),
