@@ -224,6 +224,22 @@ def test_learned_policy_episode_and_infer(tmp_path):
     assert bad.returncode == 2 and "depth8.png" in bad.stderr and "16-bit" in bad.stderr, bad.stderr
 
 
+def test_the_shipped_model_beats_random_on_fixed_goal_scenes():
+    """A floor, not a figure (the figures are in the README and model.json): an
+    export or runtime mismatch (a swapped class, a wrong channel, a stale ONNX
+    file) would bring the shipped model down to random's level."""
+    res = json.loads(
+        run("--json", "eval", "--task", "goal", "--split", "test", "--episodes-per-category", "3",
+            "--policies", "umpnet,random", "--model", str(ROOT / "models" / "umpnet-small")).stdout
+    )  # fmt: skip
+    mean = {}
+    for cell in res["cells"]:
+        mean.setdefault((cell["policy"], cell["metric"]), []).append(cell["mean"])
+    mean = {k: sum(v) / len(v) for k, v in mean.items()}
+    assert mean[("umpnet", "success_rate")] >= mean[("random", "success_rate")] + 0.3, mean
+    assert mean[("umpnet", "normalized_distance")] <= mean[("random", "normalized_distance")] - 0.3, mean
+
+
 BASELINES = ["single-step", "aot-only", "signed-dist", "where2act", "where2act-normal90", "inverse"]
 
 
