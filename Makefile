@@ -7,7 +7,7 @@ export XDG_RUNTIME_DIR ?= /tmp
 FIXTURE := $(CURDIR)/target/fixture
 export UMPNET_FIXTURE := $(FIXTURE)
 
-.PHONY: install install-runtime build py fixture demo eval-baselines test test-rerun lint test-rust test-python mutants mutants-ci clean
+.PHONY: install install-runtime build py fixture demo eval-baselines train-baselines test test-rerun lint test-rust test-python mutants mutants-ci clean
 
 install:
 	@bash scripts/install.sh all
@@ -52,6 +52,12 @@ EPISODES ?= 50
 eval-baselines: build
 	$(UMPNET) eval --task exploration --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES) --out out/baselines-exploration --force
 	$(UMPNET) eval --task goal --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --out out/baselines-goal --force
+
+# umpnet and every baseline with one recipe and one budget (cpu-small, 300 epochs,
+# dense labels, reference physics, seed 0): about half an hour per variant here,
+# resumable across sessions (scripts/train_baselines.sh says how).
+train-baselines: build py
+	bash scripts/train_baselines.sh
 
 lint: install
 	cargo fmt --all --check
