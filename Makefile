@@ -7,7 +7,7 @@ export XDG_RUNTIME_DIR ?= /tmp
 FIXTURE := $(CURDIR)/target/fixture
 export UMPNET_FIXTURE := $(FIXTURE)
 
-.PHONY: install install-runtime build py fixture demo eval-baselines train-baselines test test-rerun lint test-rust test-python mutants mutants-ci clean
+.PHONY: install install-runtime build py fixture demo eval-baselines train-baselines test test-rerun lint lint-rerun test-rust test-python mutants mutants-ci clean
 
 install:
 	@bash scripts/install.sh all
@@ -18,7 +18,8 @@ install-runtime:
 
 # `CARGO_FEATURES=--features umpnet-cli/rerun` builds Rerun recordings (`--rrd`) in;
 # `make test-rerun` builds and tests them (the Rerun SDK is ~300 crates, about
-# 27 CPU-minutes here, so `make test` checks only the refusal without it).
+# 27 CPU-minutes here). `make test` type-checks the feature with clippy
+# (`lint-rerun`, about 5 minutes here) and tests the refusal without it.
 CARGO_FEATURES ?=
 
 build: install-runtime
@@ -59,6 +60,10 @@ eval-baselines: build
 train-baselines: build py
 	bash scripts/train_baselines.sh
 
+# The `rerun` feature's code, type-checked and linted without building the SDK.
+lint-rerun: install
+	cargo clippy --release -p umpnet-cli --all-targets --features umpnet-cli/rerun -- -D warnings
+
 lint: install
 	cargo fmt --all --check
 	cargo clippy --release --workspace --all-targets $(CARGO_FEATURES) -- -D warnings
@@ -94,7 +99,7 @@ mutants: build py fixture
 	UMPNET_FIXTURE=$(FIXTURE) cargo mutants --profile release $(MUTATE) -o out/mutants
 	UMPNET_FIXTURE=$(FIXTURE) $(PY) scripts/mutants.py
 
-test: lint test-rust test-python mutants-ci
+test: lint lint-rerun test-rust test-python mutants-ci
 
 test-rerun: CARGO_FEATURES := --features umpnet-cli/rerun
 test-rerun: build
