@@ -55,7 +55,7 @@ eval-baselines: build
 	$(UMPNET) eval --task goal --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --out out/baselines-goal --force
 
 # umpnet and every baseline with one recipe and one budget (cpu-small, 300 epochs,
-# dense labels, reference physics, seed 0): about half an hour per variant here,
+# dense labels, reference physics, seed 0): an estimated 45 minutes per variant here,
 # resumable across sessions (scripts/train_baselines.sh says how).
 train-baselines: build py
 	bash scripts/train_baselines.sh

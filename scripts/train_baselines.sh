@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # umpnet and the paper's baselines trained with one recipe and one budget:
 # cpu-small, reference physics, released labels, --dense-labels 16, seed 0,
-# $EPOCHS epochs each (default 300), one variant after another. About half an
-# hour per variant on 2 cores.
+# $EPOCHS epochs each (default 300), one variant after another. An estimated
+# 45 minutes per variant on 2 cores (9 s per epoch, measured in a fine-tune).
 #
 # Resumable across sessions: each run lives in runs/budget/VARIANT (a
 # checkpoint every 50 epochs). `scripts/train_baselines.sh keep` copies the
