@@ -11,34 +11,11 @@ import numpy as np
 import pytest
 import torch
 import umpnet
-from umpnet_train import collect, train
-from umpnet_train.config import make_config
+from umpnet_train import collect, fixture, train
 from umpnet_train.export import export_model
-from umpnet_train.models import UMPNet
 
-CANONICAL = (-1, 0, 1)
-
-
-def crafted(columns=CANONICAL):
-    """A smoke model whose decoder ignores the image: distance 0.3 - 0.2 x, and
-    AoT logits 10 x for class +1, -10 x for -1, 1 for 0 (no move when |x| < 0.1).
-    `columns` is the class each output column holds."""
-    torch.manual_seed(0)
-    cfg = make_config("smoke")
-    model = UMPNet(cfg)
-    dec = model.decoder
-    with torch.no_grad():
-        for p in dec.parameters():
-            p.zero_()
-        dec.dist_head[-1].bias.fill_(0.3)
-        dec.bilinear_dist.bias.copy_(torch.tensor([-0.2, 0.0, 0.0]))
-        bil, base = torch.zeros(3, 3), torch.zeros(3)
-        for col, cls in enumerate(columns):
-            bil[col, 0] = 10.0 * cls
-            base[col] = 1.0 if cls == 0 else 0.0
-        dec.bilinear_aot.bias.copy_(bil.reshape(-1))
-        dec.aot_head[-1].bias.copy_(base)
-    return model, cfg
+CANONICAL = fixture.CANONICAL
+crafted = fixture.steering_model
 
 
 def package(path, columns=CANONICAL, classes=None):

@@ -1,5 +1,7 @@
 """A small, untrained model package plus reference inputs and the outputs
 Python onnxruntime gives on them: the contract test of the Rust runtime.
+Beside it, packages whose decoder is set by hand, for the tests of what the
+runtime's choices mean (OUT_DIR/steer, steer-normal90 and inverse).
 
     python -m umpnet_train.fixture OUT_DIR
 """
@@ -21,6 +23,53 @@ from .models import CHANNELS, OBS_MEAN, UMPNet
 
 def unit_rows(d: np.ndarray) -> np.ndarray:
     return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+CANONICAL = (-1, 0, 1)
+
+
+def steering_model(columns=CANONICAL):
+    """A smoke model whose decoder ignores the image: distance 0.3 - 0.2 x, and
+    AoT logits 10 x for class +1, -10 x for -1, 1 for 0 (no move when |x| < 0.1).
+    So the distance head rates -x highest while the AoT head calls +x forward.
+    `columns` is the class each output column holds."""
+    torch.manual_seed(0)
+    cfg = make_config("smoke")
+    model = UMPNet(cfg)
+    dec = model.decoder
+    with torch.no_grad():
+        for p in dec.parameters():
+            p.zero_()
+        dec.dist_head[-1].bias.fill_(0.3)
+        dec.bilinear_dist.bias.copy_(torch.tensor([-0.2, 0.0, 0.0]))
+        bil, base = torch.zeros(3, 3), torch.zeros(3)
+        for col, cls in enumerate(columns):
+            bil[col, 0] = 10.0 * cls
+            base[col] = 1.0 if cls == 0 else 0.0
+        dec.bilinear_aot.bias.copy_(bil.reshape(-1))
+        dec.aot_head[-1].bias.copy_(base)
+    return model, cfg
+
+
+def inverse_model(prediction=(1.2, 1.6, 0.0)):
+    """An Inverse-baseline smoke model that regresses `prediction` whatever it sees."""
+    torch.manual_seed(0)
+    cfg = make_config("smoke", variant="inverse")
+    model = UMPNet(cfg)
+    with torch.no_grad():
+        for p in model.decoder.inverse_head.parameters():
+            p.zero_()
+        model.decoder.inverse_head[-1].bias.copy_(torch.tensor(prediction))
+    return model, cfg
+
+
+def write_hand_set_packages(out: Path) -> None:
+    provenance = {"command": "python -m umpnet_train.fixture", "seed": 0, "trained": False}
+    model, cfg = steering_model()
+    export_model(model, cfg, out / "steer", provenance)
+    export_model(model, cfg, out / "steer-normal90", provenance, direction_filter="normal90")
+    model, cfg = inverse_model()
+    export_model(model, cfg, out / "inverse", provenance)
 
 
 def main(argv=None) -> int:
@@ -59,6 +108,7 @@ def main(argv=None) -> int:
                 entry[kind].append({"name": name, "file": file, "shape": list(arr.shape), "dtype": str(arr.dtype)})
         manifest.append(entry)
     (ref_dir / "manifest.json").write_text(json.dumps(manifest, indent=2))
+    write_hand_set_packages(out)
     print(f"wrote fixture package and reference outputs to {out}")
     return 0
 

@@ -282,4 +282,100 @@ mod tests {
         assert_eq!(objective(&scores[0], Mode::Explore), 0.2);
         assert_eq!(objective(&scores[1], Mode::Goal), 0.9);
     }
+
+    #[test]
+    fn fibonacci_directions_are_unit_and_spread_over_the_sphere() {
+        let dirs = fibonacci_sphere(CANDIDATES);
+        assert_eq!(dirs.len(), CANDIDATES);
+        for d in &dirs {
+            assert!((d.norm() - 1.0).abs() < 1e-5, "{d:?} is not a unit vector");
+        }
+        // Heights are evenly spaced strips, pole to pole.
+        let n = CANDIDATES as f32;
+        for (i, d) in dirs.iter().enumerate() {
+            assert!((d.z - (1.0 - (2 * i + 1) as f32 / n)).abs() < 1e-6);
+        }
+        // The golden-angle turn keeps every pair of directions apart: an even
+        // cover of 64 points has neighbours about 25 degrees apart; a wrong
+        // turn per step brings some within 17 degrees of each other.
+        let closest = dirs
+            .iter()
+            .enumerate()
+            .flat_map(|(i, a)| dirs[i + 1..].iter().map(move |b| a.dot(b)))
+            .fold(f32::NEG_INFINITY, f32::max);
+        assert!(
+            closest.acos() > 0.35,
+            "two directions only {:.1} degrees apart",
+            closest.acos().to_degrees()
+        );
+    }
+
+    #[test]
+    fn a_ban_covers_directions_strictly_within_its_angle() {
+        let banned = [Vector3::new(1.0, 0.0, 0.0)];
+        let on_the_edge = Vector3::new(BAN_COS, (1.0 - BAN_COS * BAN_COS).sqrt(), 0.0);
+        assert!(!is_banned(&on_the_edge, &banned));
+        let inside = Vector3::new(BAN_COS + 0.01, (1.0 - (BAN_COS + 0.01).powi(2)).sqrt(), 0.0);
+        assert!(is_banned(&inside, &banned));
+    }
+
+    /// Share of `second_round`'s draws near `a` rather than `b` (orthogonal),
+    /// given their objectives.
+    fn share_near_first(objectives: [f32; 2], seed: u64) -> f32 {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let first = [Vector3::x(), Vector3::y()];
+        let scores = objectives.map(|distance| Score { distance, aot: 1 });
+        let mut near = 0;
+        let mut all = 0;
+        for _ in 0..40 {
+            let drawn = second_round(&mut rng, &first, &scores, Mode::Explore, &[]);
+            assert_eq!(
+                drawn.len(),
+                CANDIDATES,
+                "the second round has as many candidates as the first"
+            );
+            near += drawn.iter().filter(|d| d.x > d.y).count();
+            all += drawn.len();
+        }
+        near as f32 / all as f32
+    }
+
+    #[test]
+    fn resampling_weights_are_exp_of_twenty_times_the_score() {
+        // Objectives 0.1 and 0: weights e^2 : 1, so 88% of draws come from the first.
+        let expected = (RESAMPLE_SHARPNESS * 0.1).exp() / ((RESAMPLE_SHARPNESS * 0.1).exp() + 1.0);
+        let share = share_near_first([0.1, 0.0], 4);
+        assert!(
+            (share - expected).abs() < 0.03,
+            "{share} of draws near the better candidate, expected {expected}"
+        );
+        // Only differences count: large predicted distances give the same split
+        // and do not overflow.
+        let share = share_near_first([10.1, 10.0], 5);
+        assert!(
+            (share - expected).abs() < 0.03,
+            "{share} at large distances, expected {expected}"
+        );
+    }
+
+    #[test]
+    fn resampling_tries_past_bans_and_stops_when_everything_is_banned() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(6);
+        let first = [Vector3::z()];
+        let scores = [Score {
+            distance: 0.2,
+            aot: 1,
+        }];
+        // A ban whose cone edge passes through the only good candidate turns
+        // away about half the draws; the round still fills up.
+        let tilt = BAN_COS.acos();
+        let half = [Vector3::new(tilt.sin(), 0.0, tilt.cos())];
+        for _ in 0..10 {
+            let drawn = second_round(&mut rng, &first, &scores, Mode::Explore, &half);
+            assert_eq!(drawn.len(), CANDIDATES);
+        }
+        // Everything banned: the round gives up with no candidate instead of spinning.
+        let everywhere = fibonacci_sphere(400);
+        assert!(second_round(&mut rng, &first, &scores, Mode::Explore, &everywhere).is_empty());
+    }
 }

@@ -1,0 +1,404 @@
+//! What `UmpnetPolicy` decides, on the fixture's packages (made by
+//! `python -m umpnet_train.fixture DIR`; make test sets UMPNET_FIXTURE):
+//! - the untrained package, for the grasp: the test reads its affordance map
+//!   and works out the pixel the policy must pick;
+//! - `steer`, whose decoder ignores the image: distance 0.3 - 0.2 x, AoT +1
+//!   along +x and -1 along -x, so the largest distance is a backward move;
+//! - `steer-normal90`, the same with the Where2Act pulling filter;
+//! - `inverse`, an Inverse baseline that always regresses (1.2, 1.6, 0),
+//!   which its package normalises to (0.6, 0.8, 0).
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    reason = "tests fail by panicking"
+)]
+use nalgebra::Vector3;
+use ndarray::{Array3, Axis};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::path::PathBuf;
+use std::sync::Arc;
+use umpnet_policy::cem::Mode;
+use umpnet_policy::policy::GOAL_DIFF_M;
+use umpnet_policy::{CHANNELS, DecisionInput, ModelPackage, UmpnetPolicy};
+
+/// The fixture's package `name` ("" for the untrained one), or None (skipped,
+/// with the reason printed; under CI=true a missing fixture fails).
+fn policy(name: &str) -> Option<UmpnetPolicy> {
+    let Some(dir) = std::env::var_os("UMPNET_FIXTURE") else {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "UMPNET_FIXTURE not set under CI=true (make test sets it)"
+        );
+        eprintln!("skipped: UMPNET_FIXTURE not set (make test sets it)");
+        return None;
+    };
+    let dir = PathBuf::from(dir).join(name);
+    let package = ModelPackage::load(&dir, 1, 1, None)
+        .unwrap_or_else(|e| panic!("{}: {e} (rebuild the fixture)", dir.display()));
+    Some(UmpnetPolicy::new(Arc::new(package)))
+}
+
+/// A random observation at the policy's resolution, every pixel with depth.
+fn observation(policy: &UmpnetPolicy, seed: u64) -> Array3<f32> {
+    use rand::Rng;
+    let (h, w) = policy.resolution();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut obs = Array3::from_shape_fn((h, w, CHANNELS), |_| rng.random_range(-1.0f32..1.0));
+    obs.index_axis_mut(Axis(2), 9).fill(2.0);
+    obs
+}
+
+/// The affordance map the policy's package gives for `obs`.
+fn affordance(policy: &UmpnetPolicy, obs: &Array3<f32>) -> ndarray::Array2<f32> {
+    policy
+        .package
+        .position(obs.view().insert_axis(Axis(0)))
+        .unwrap()
+        .index_axis_move(Axis(0), 0)
+}
+
+/// The pixel of largest affordance among those `allowed` (first in raster order on ties).
+fn best(aff: &ndarray::Array2<f32>, allowed: impl Fn(usize, usize) -> bool) -> (usize, usize) {
+    let mut out: Option<((usize, usize), f32)> = None;
+    for ((r, c), &a) in aff.indexed_iter() {
+        if allowed(r, c) && out.is_none_or(|(_, b)| a > b) {
+            out = Some(((r, c), a));
+        }
+    }
+    out.unwrap().0
+}
+
+#[test]
+fn the_grasp_is_the_best_affordance_among_pixels_with_depth() {
+    let Some(policy) = policy("") else { return };
+    let mut obs = observation(&policy, 1);
+    let aff = affordance(&policy, &obs);
+    let top = best(&aff, |_, _| true);
+    // Take the depth away from the top pixel and from a band of rows: the
+    // affordance map is computed from the same image, so it is re-read.
+    obs[[top.0, top.1, 9]] = 0.0;
+    for c in 0..obs.shape()[1] {
+        obs[[0, c, 9]] = -1.0;
+    }
+    let aff = affordance(&policy, &obs);
+    let chosen = policy.position(obs.view(), None).unwrap();
+    assert_eq!(chosen.affordance, aff);
+    assert_eq!(chosen.pixel, best(&aff, |r, c| obs[[r, c, 9]] > 0.0));
+    assert_ne!(chosen.pixel, top);
+    assert_ne!(chosen.pixel.0, 0);
+}
+
+#[test]
+fn with_a_goal_the_grasp_is_where_the_goal_differs() {
+    let Some(policy) = policy("") else { return };
+    let (h, _) = policy.resolution();
+    let mut obs = observation(&policy, 2);
+    obs.slice_mut(ndarray::s![.., .., 0..3]).fill(0.0);
+    let aff = affordance(&policy, &obs);
+    // The changes lie away from the best pixel overall, so that a wrong mask
+    // shows: ten rows moved 5 cm, two rows where the goal image has no depth
+    // (the part is elsewhere there). Everywhere else the goal differs by
+    // exactly GOAL_DIFF_M, which is not yet a change.
+    let top = best(&aff, |_, _| true);
+    let start = if top.0 < h / 2 { h / 2 } else { 2 };
+    let (moved, gone) = (start..start + 10, start + 10..start + 12);
+    let mut goal = obs.clone();
+    goal.slice_mut(ndarray::s![.., .., 0]).fill(GOAL_DIFF_M);
+    goal.slice_mut(ndarray::s![moved.clone(), .., 1]).fill(0.05);
+    goal.slice_mut(ndarray::s![gone.start..gone.start + 1, .., 9])
+        .fill(0.0);
+    goal.slice_mut(ndarray::s![gone.start + 1..gone.end, .., 9])
+        .fill(-1.0);
+    let chosen = policy.position(obs.view(), Some(goal.view())).unwrap();
+    assert_eq!(
+        chosen.pixel,
+        best(&aff, |r, _| moved.contains(&r) || gone.contains(&r))
+    );
+    assert_ne!(chosen.pixel, top);
+    // Only the rows that moved.
+    let mut moved_only = goal.clone();
+    moved_only
+        .slice_mut(ndarray::s![gone.clone(), .., 9])
+        .fill(2.0);
+    let chosen = policy
+        .position(obs.view(), Some(moved_only.view()))
+        .unwrap();
+    assert_eq!(chosen.pixel, best(&aff, |r, _| moved.contains(&r)));
+    // A goal that differs nowhere: the best pixel with depth, as without a goal.
+    let chosen = policy.position(obs.view(), Some(obs.view())).unwrap();
+    assert_eq!(chosen.pixel, top);
+    // Changes only where the current image has no depth: nothing there can be
+    // grasped, so the best pixel with depth.
+    let mut holed = obs.clone();
+    holed.slice_mut(ndarray::s![moved.clone(), .., 9]).fill(0.0);
+    let aff = affordance(&policy, &holed);
+    let chosen = policy
+        .position(holed.view(), Some(moved_only.view()))
+        .unwrap();
+    assert_eq!(chosen.pixel, best(&aff, |r, _| !moved.contains(&r)));
+}
+
+#[test]
+fn grasp_inputs_that_cannot_be_used_are_errors() {
+    let Some(policy) = policy("") else { return };
+    let obs = observation(&policy, 3);
+    let (h, w) = policy.resolution();
+    let small = Array3::<f32>::zeros((h / 2, w, CHANNELS));
+    let err = policy.position(obs.view(), Some(small.view())).unwrap_err();
+    assert!(
+        err.to_string().contains("goal observation has shape"),
+        "{err}"
+    );
+    let mut no_depth = obs.clone();
+    no_depth.index_axis_mut(Axis(2), 9).fill(0.0);
+    let err = policy.position(no_depth.view(), None).unwrap_err();
+    assert!(err.to_string().contains("no pixel with depth"), "{err}");
+}
+
+fn decide(
+    policy: &UmpnetPolicy,
+    obs: &[Array3<f32>],
+    modes: &[Mode],
+    banned: &[Vector3<f32>],
+    seed: u64,
+) -> Vec<umpnet_policy::cem::CemResult> {
+    let (h, w) = policy.resolution();
+    decide_at(policy, obs, modes, banned, seed, (h / 2, w / 2))
+}
+
+fn decide_at(
+    policy: &UmpnetPolicy,
+    obs: &[Array3<f32>],
+    modes: &[Mode],
+    banned: &[Vector3<f32>],
+    seed: u64,
+    pixel: (usize, usize),
+) -> Vec<umpnet_policy::cem::CemResult> {
+    let inputs: Vec<DecisionInput> = obs
+        .iter()
+        .zip(modes)
+        .map(|(o, &mode)| DecisionInput {
+            observation: o.view(),
+            reference: o.view(),
+            pixel,
+            banned,
+            mode,
+        })
+        .collect();
+    let mut rngs: Vec<ChaCha8Rng> = (0..obs.len())
+        .map(|i| ChaCha8Rng::seed_from_u64(seed + i as u64))
+        .collect();
+    policy.directions(&inputs, &mut rngs).unwrap()
+}
+
+#[test]
+fn exploration_moves_forward_and_the_goal_mode_back() {
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let obs = observation(&policy, 4);
+    let r = decide(
+        &policy,
+        std::slice::from_ref(&obs),
+        &[Mode::Explore],
+        &[],
+        7,
+    )
+    .remove(0);
+    assert_eq!(r.candidates.len(), 128);
+    assert_eq!(r.scores.len(), 128);
+    // Every candidate's score is what the hand-set decoder gives it.
+    for (d, s) in r.candidates.iter().zip(&r.scores) {
+        assert!(
+            (s.distance - (0.3 - 0.2 * d.x)).abs() < 1e-4,
+            "{d:?}: {s:?}"
+        );
+        let aot = if d.x > 0.1 {
+            1
+        } else if d.x < -0.1 {
+            -1
+        } else {
+            0
+        };
+        if (d.x.abs() - 0.1).abs() > 0.01 {
+            assert_eq!(s.aot, aot, "{d:?}");
+        }
+    }
+    let chosen = r.direction.unwrap();
+    assert!(chosen.x > 0.1, "{chosen:?}");
+    // The goal mode: the most backward candidate (largest distance among AoT -1).
+    let r = decide(&policy, &[obs], &[Mode::Goal], &[], 7).remove(0);
+    let chosen = r.direction.unwrap();
+    let most_back = r
+        .candidates
+        .iter()
+        .map(|d| d.x)
+        .fold(f32::INFINITY, f32::min);
+    assert_eq!(chosen.x, most_back);
+    assert!(chosen.x < -0.9);
+}
+
+#[test]
+fn a_batch_decides_as_its_members_would_alone() {
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let obs: Vec<Array3<f32>> = (0..3).map(|i| observation(&policy, 10 + i)).collect();
+    let modes = [Mode::Explore, Mode::Goal, Mode::Explore];
+    let banned = [Vector3::x()];
+    let batch = decide(&policy, &obs, &modes, &banned, 20);
+    for i in 0..3 {
+        let alone = decide(
+            &policy,
+            std::slice::from_ref(&obs[i]),
+            &modes[i..=i],
+            &banned,
+            20 + i as u64,
+        )
+        .remove(0);
+        assert_eq!(batch[i].candidates, alone.candidates, "member {i}");
+        assert_eq!(batch[i].scores, alone.scores, "member {i}");
+        assert_eq!(batch[i].direction, alone.direction, "member {i}");
+        assert!(
+            batch[i]
+                .candidates
+                .iter()
+                .all(|d| d.dot(&Vector3::x()) <= umpnet_policy::cem::BAN_COS)
+        );
+    }
+    // The same seeds, the same decisions.
+    let again = decide(&policy, &obs, &modes, &banned, 20);
+    assert!(
+        batch
+            .iter()
+            .zip(&again)
+            .all(|(a, b)| a.candidates == b.candidates && a.direction == b.direction)
+    );
+}
+
+#[test]
+fn the_normal90_filter_scores_pushes_into_the_surface_as_no_effect() {
+    let Some(policy) = policy("steer-normal90") else {
+        return;
+    };
+    let mut obs = observation(&policy, 5);
+    let (h, w) = policy.resolution();
+    // The surface at the grasp faces -x: any move with a +x component pushes
+    // into it. The grasp is in the corner, given past the image's edge.
+    for (k, v) in [-1.0, 0.0, 0.0].into_iter().enumerate() {
+        obs[[h - 1, w - 1, 6 + k]] = v;
+    }
+    let r = decide_at(&policy, &[obs], &[Mode::Explore], &[], 8, (h + 2, w + 3)).remove(0);
+    for (d, s) in r.candidates.iter().zip(&r.scores) {
+        if d.x > 0.0 {
+            assert_eq!((s.distance, s.aot), (-1.0, 0), "{d:?}");
+        } else {
+            assert!(
+                (s.distance - (0.3 - 0.2 * d.x)).abs() < 1e-4,
+                "{d:?}: {s:?}"
+            );
+        }
+    }
+    // Nothing left that moves forward: exploration takes the largest distance.
+    let chosen = r.direction.unwrap();
+    assert!(chosen.x < -0.9, "{chosen:?}");
+}
+
+#[test]
+fn the_inverse_baseline_acts_on_its_regressed_direction_in_the_goal_task_only() {
+    let Some(policy) = policy("inverse") else {
+        return;
+    };
+    let obs = observation(&policy, 6);
+    let r = decide(&policy, std::slice::from_ref(&obs), &[Mode::Goal], &[], 9).remove(0);
+    let d = r.direction.unwrap();
+    assert!((d - Vector3::new(0.6, 0.8, 0.0)).norm() < 1e-5, "{d:?}");
+    assert_eq!(r.candidates, vec![d]);
+    // The package's decoder outputs the regression normalised; its length is the score.
+    assert!((r.scores[0].distance - 1.0).abs() < 1e-5, "{:?}", r.scores);
+    assert_eq!(r.scores[0].aot, -1);
+    let (h, w) = policy.resolution();
+    let mut rngs = vec![ChaCha8Rng::seed_from_u64(0)];
+    let input = DecisionInput {
+        observation: obs.view(),
+        reference: obs.view(),
+        pixel: (h / 2, w / 2),
+        banned: &[],
+        mode: Mode::Explore,
+    };
+    let err = policy.directions(&[input], &mut rngs).err().unwrap();
+    assert!(
+        err.to_string().contains("serves only the goal task"),
+        "{err}"
+    );
+}
+
+fn explore<'a>(
+    observation: &'a Array3<f32>,
+    reference: &'a Array3<f32>,
+    pixel: (usize, usize),
+) -> DecisionInput<'a> {
+    DecisionInput {
+        observation: observation.view(),
+        reference: reference.view(),
+        pixel,
+        banned: &[],
+        mode: Mode::Explore,
+    }
+}
+
+#[test]
+fn decision_inputs_that_do_not_fit_are_errors() {
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let obs = observation(&policy, 7);
+    let (h, w) = policy.resolution();
+    let input = |reference, pixel| explore(&obs, reference, pixel);
+    let mut two = vec![ChaCha8Rng::seed_from_u64(0); 2];
+    let err = policy
+        .directions(&[input(&obs, (0, 0))], &mut two)
+        .err()
+        .unwrap();
+    assert!(
+        err.to_string().contains("1 inputs but 2 random generators"),
+        "{err}"
+    );
+    assert!(policy.directions(&[], &mut []).unwrap().is_empty());
+    let small = Array3::<f32>::zeros((h, w / 2, CHANNELS));
+    let err = policy
+        .directions(&[input(&small, (0, 0))], &mut two[..1])
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("the model takes"), "{err}");
+    // A grasp pixel past the image's edge is clamped onto it: the untrained
+    // package's scores depend on the embedding at the pixel.
+    let Some(policy) = self::policy("") else {
+        return;
+    };
+    let obs = observation(&policy, 7);
+    let input = |reference, pixel| explore(&obs, reference, pixel);
+    let edge = policy
+        .directions(
+            &[input(&obs, (h - 1, w - 1))],
+            &mut [ChaCha8Rng::seed_from_u64(1)],
+        )
+        .unwrap();
+    let past = policy
+        .directions(
+            &[input(&obs, (h + 5, w + 9))],
+            &mut [ChaCha8Rng::seed_from_u64(1)],
+        )
+        .unwrap();
+    assert_eq!(edge[0].scores, past[0].scores);
+    let inside = policy
+        .directions(
+            &[input(&obs, (h / 2, w / 2))],
+            &mut [ChaCha8Rng::seed_from_u64(1)],
+        )
+        .unwrap();
+    assert_ne!(edge[0].scores, inside[0].scores);
+}
