@@ -186,4 +186,104 @@ mod tests {
         assert!(train_labels(0.5, -0.2, 0.3, -1.0, 1.0, false).reached_init);
         assert!(!train_labels(0.13, 0.26, 0.0, 0.0, 0.4, true).reached_init);
     }
+
+    #[test]
+    fn step_labels_at_their_boundaries() {
+        // Range [0.5, 2]: a limit is reached within 1e-3 + 1e-3 x 1.5 = 2.5e-3.
+        let at = |after: f32| labels(1.0, after, 1.0, 0.5, 2.0, false, false);
+        assert!(at(2.0 - 0.002).reached_limit && at(0.5 + 0.002).reached_limit);
+        assert!(!at(2.0 - 0.003).reached_limit && !at(0.5 + 0.003).reached_limit);
+        assert!(!at(1.2).reached_limit);
+        // Ranges [0, 1] and [-1, 0]: the tolerance is exactly 0.002, and a
+        // joint exactly that far from a limit has not reached it.
+        let tol = 0.002f32;
+        assert!(!labels(0.5, tol, 0.5, 0.0, 1.0, false, false).reached_limit);
+        assert!(!labels(-0.5, -tol, -0.5, -1.0, 0.0, false, false).reached_limit);
+        // Moved: more than δ/10.
+        let moved = |r: f32| labels(0.0, r, 0.0, -2.0, 2.0, false, false).moved;
+        assert!(moved(0.02) && !moved(0.01) && !moved(DELTA / 10.0));
+        // Back at the start: within δ of it, wherever the start is.
+        assert!(labels(1.2, 0.75, 0.8, 0.0, 1.5, false, false).back_at_start);
+        assert!(!labels(1.2, 0.6, 0.8, 0.0, 1.5, false, false).back_at_start);
+        // Within 1e-3 of the start counts as at the start: any move is forward.
+        assert_eq!(labels(0.8005, 0.5, 0.8, 0.0, 1.5, false, false).aot, 1);
+        assert_eq!(labels(0.0005, -0.3, 0.0, -1.0, 1.5, false, false).aot, 1);
+        // 1e-3 away no longer is: going back down is backward.
+        assert_eq!(
+            labels(1e-3, 1e-3 - 0.3, 0.0, -1.0, 1.5, false, false).aot,
+            -1
+        );
+    }
+
+    #[test]
+    fn training_labels_at_their_boundaries() {
+        // A short prismatic range, 7/64 m, so that the threshold is
+        // range / 3.5 = 1/32 exactly and every boundary below is exact.
+        let (lower, upper) = (0.0f32, 0.109375f32);
+        let thr = 0.03125f32;
+        assert_eq!(threshold(true, lower, upper), thr);
+        assert_eq!(threshold(true, 0.2, 0.3), (0.3f32 - 0.2) / 3.5);
+        assert_eq!(threshold(false, -1.0, 1.0), 0.1);
+        assert_eq!(threshold(true, 0.0, f32::INFINITY), 0.05);
+        let t =
+            |before: f32, after: f32, j0: f32| train_labels(before, after, j0, lower, upper, true);
+        // Moved: a step of exactly a 3.5th of the range is not yet a move.
+        assert!(!t(0.0, thr, 0.0).moved);
+        assert!(t(0.0, thr + 1e-4, 0.0).moved);
+        // Exactly 0.1 rad on a long revolute range is not a move either.
+        assert!(!train_labels(0.0, 0.1, 0.0, -3.0, 3.0, false).moved);
+        // The range is measured from the lower limit, not from 0.
+        assert!(train_labels(0.2, 0.23, 0.2, 0.2, 0.3, true).moved);
+        // The sign: exactly 0.02 from the start is still inside the dead band.
+        assert_eq!(train_labels(0.02, -0.2, 0.0, -1.0, 1.0, false).aot, 1);
+        // Back at the start, with j0 in the middle of the range.
+        let j0 = 0.0625f32;
+        assert!(
+            t(0.1, j0 - thr, j0).reached_init,
+            "from above, crossed to exactly thr below"
+        );
+        assert!(
+            !t(0.1, j0 + thr, j0).reached_init,
+            "from above, exactly thr above: not yet"
+        );
+        assert!(
+            t(0.0, 0.1, j0).reached_init,
+            "from below, crossed well above"
+        );
+        assert!(
+            t(0.0, j0 + thr, j0).reached_init,
+            "from below, crossed to exactly thr above"
+        );
+        assert!(
+            !t(0.0, j0 - thr, j0).reached_init,
+            "from below, exactly thr below: not yet"
+        );
+        assert!(
+            t(j0, 0.07, j0).reached_init,
+            "at the start and within thr of it"
+        );
+        assert!(!t(j0, 0.0, j0).reached_init, "from the start, away below");
+        assert!(!t(j0, upper, j0).reached_init, "from the start, away above");
+        assert!(
+            !t(j0, j0 + thr, j0).reached_init,
+            "from the start, exactly thr away"
+        );
+    }
+
+    #[test]
+    fn the_boundary_event_at_its_edges() {
+        // Threshold 1/4, range [0, 2], so every value below is exact.
+        let thr = 0.25f32;
+        let at = |value: f32, start: f32| reached_limit(value, start, 0.0, 2.0, thr);
+        assert!(at(0.1, 1.0) && at(1.9, 1.0));
+        assert!(
+            !at(0.25, 1.0) && !at(1.75, 1.0),
+            "exactly thr from a limit is not within it"
+        );
+        assert!(at(1.8, 1.0));
+        // Near a limit, but only exactly thr from the start: not yet.
+        assert!(!at(0.125, 0.375));
+        assert!(at(0.125, 0.5));
+        assert!(!at(1.0, 0.0), "far from both limits");
+    }
 }

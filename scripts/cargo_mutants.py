@@ -1,0 +1,113 @@
+"""cargo-mutants over the core Rust modules, and the check that every mutant it
+reports as missed is one that docs/harmless-mutants.txt lists with its reason.
+
+    .venv/bin/python scripts/cargo_mutants.py          # run all three groups, then check
+    .venv/bin/python scripts/cargo_mutants.py --check  # only check the last runs' reports
+
+Each group mutates one crate's modules and runs the tests that exercise them.
+The mutated crate is built at opt-level 0, incrementally, with its
+dependencies optimised as in release: a mutant then takes seconds, not the
+minute a release build of the crate takes on 2 cores.
+
+A missed mutant is matched to the list by file, function and change, not by
+line, so that edits elsewhere in a file do not invalidate the list; a listed
+change covers as many survivors as it is listed times. Exit status 1 when a
+survivor is not listed (a test is missing, or the list must say why the
+mutant cannot matter), or when a listed one is now caught (the list is stale).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+HARMLESS = ROOT / "docs" / "harmless-mutants.txt"
+
+# (report folder, crate, modules, extra arguments)
+GROUPS = [
+    ("out/mutants-sim", "umpnet-sim", ["crates/sim/src/labels.rs"], []),
+    ("out/mutants-action", "umpnet-sim", ["crates/sim/src/physics/reference.rs"], []),
+    (
+        "out/mutants-eval",
+        "umpnet-eval",
+        ["crates/eval/src/protocol.rs", "crates/eval/src/episode.rs"],
+        [],
+    ),
+    (
+        "out/mutants-policy",
+        "umpnet-policy",
+        ["crates/policy/src/cem.rs", "crates/policy/src/policy.rs", "crates/policy/src/observation.rs"],
+        ["--test-package", "umpnet-policy", "--test-package", "umpnet-eval"],
+    ),
+]
+
+# "crates/x.rs:117:43: replace < with <= in second_round" -> without the position
+MISSED = re.compile(r"^(?P<file>[^:]+):\d+:\d+: (?P<what>.+)$")
+
+
+def key(line: str) -> str | None:
+    m = MISSED.match(line.strip())
+    return f"{m['file']}: {m['what']}" if m else None
+
+
+def listed() -> Counter:
+    out: Counter = Counter()
+    for line in HARMLESS.read_text().splitlines():
+        if line.strip() and not line.startswith("#"):
+            mutant, _, reason = line.partition(" -- ")
+            if not reason.strip():
+                sys.exit(f"{HARMLESS}: `{line}` gives no reason after ' -- '")
+            out[mutant.strip()] += 1
+    return out
+
+
+def run(folder: str, crate: str, files: list[str], extra: list[str]) -> None:
+    env = dict(os.environ, CARGO_PROFILE_RELEASE_INCREMENTAL="true")
+    cmd = ["cargo", "mutants", "--in-place", "--profile", "release", "-o", folder]
+    cmd += ["-C", "--config", "-C", f"profile.release.package.{crate}.opt-level=0", *extra]
+    for f in files:
+        cmd += ["-f", f]
+    print("+", " ".join(cmd), flush=True)
+    # Exit status 2 means "some mutants missed": the check below judges them.
+    status = subprocess.run(cmd, check=False, cwd=ROOT, env=env).returncode
+    if status not in (0, 2):
+        sys.exit(f"cargo mutants failed with status {status} on {crate}")
+
+
+def check() -> int:
+    missed: Counter = Counter()
+    for folder, *_ in GROUPS:
+        report = ROOT / folder / "mutants.out" / "missed.txt"
+        if not report.is_file():
+            sys.exit(f"{report}: no report; run scripts/cargo_mutants.py first")
+        missed.update(k for k in map(key, report.read_text().splitlines()) if k)
+    allowed = listed()
+    unexplained = missed - allowed
+    stale = allowed - missed
+    for k in sorted(unexplained.elements()):
+        print(f"missed and not explained: {k}")
+    for k in sorted(stale.elements()):
+        print(f"listed as harmless but no longer missed (remove it from {HARMLESS.name}): {k}")
+    total = sum(missed.values())
+    print(f"{total} missed mutants, {total - sum(unexplained.values())} of them listed as harmless")
+    return 1 if unexplained or stale else 0
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="only check the reports of the last runs")
+    args = parser.parse_args()
+    if not args.check:
+        for group in GROUPS:
+            run(*group)
+    return check()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
