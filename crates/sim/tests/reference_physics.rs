@@ -173,3 +173,73 @@ fn the_ideal_profile_loses_no_motion_after_a_limit_either() {
         "the first pull back moved {moved}"
     );
 }
+
+/// A planar arm: `n` hinges about z, each link 0.2 m long along x.
+fn arm(n: usize) -> (Arc<ObjectModel>, Articulation) {
+    let mut urdf = String::from(r#"<?xml version="1.0"?><robot name="arm"><link name="l0"/>"#);
+    for i in 1..=n {
+        urdf += &format!(
+            r#"<link name="l{i}"><inertial><origin xyz="0.1 0 0"/><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial><visual><origin xyz="0.1 0 0"/><geometry><box size="0.2 0.04 0.04"/></geometry></visual></link>
+            <joint name="j{i}" type="revolute"><parent link="l{p}"/><child link="l{i}"/><origin xyz="{x} 0 0"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="100" velocity="1"/></joint>"#,
+            p = i - 1,
+            x = if i == 1 { 0.0 } else { 0.2 },
+        );
+    }
+    urdf += "</robot>";
+    let model = Arc::new(parse_urdf(&urdf, std::path::Path::new("arm.urdf")).unwrap());
+    let art = Articulation::new(
+        model.clone(),
+        Pose3::IDENTITY,
+        PhysicsConfig::with_profile(PhysicsProfile::Reference),
+    );
+    (model, art)
+}
+
+#[test]
+fn the_grasp_is_held_until_released() {
+    let (m, mut art) = cabinet();
+    let j = joint(&m, "drawer_slide");
+    assert_eq!((art.grasped_link(), art.gripper_position()), (None, None));
+    let err = art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).unwrap_err();
+    assert!(err.to_string().contains("no grasp"), "{err}");
+    let drawer = link(&m, "drawer");
+    art.attach(Vec3::new(0.0, -0.76, 0.25), drawer).unwrap();
+    assert_eq!(art.grasped_link(), Some(drawer));
+    art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).unwrap();
+    assert_eq!(
+        art.grasped_link(),
+        Some(drawer),
+        "an action keeps the grasp"
+    );
+    art.release();
+    assert_eq!((art.grasped_link(), art.gripper_position()), (None, None));
+    assert!(art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).is_err());
+    // Setting the joints drops the grasp and any motion.
+    art.attach(Vec3::new(0.0, -0.9, 0.25), drawer).unwrap();
+    art.set_joint_positions(&[0.3, 0.2]).unwrap();
+    assert_eq!(art.grasped_link(), None);
+    assert_eq!((art.joint_velocity(0), art.joint_velocity(1)), (0.0, 0.0));
+}
+
+#[test]
+fn only_the_five_joints_nearest_the_grasp_carry_the_load() {
+    let n = 7;
+    let (m, mut art) = arm(n);
+    let tip = link(&m, &format!("l{n}"));
+    art.attach(Vec3::new(0.2 * n as f32 - 0.02, 0.0, 0.0), tip)
+        .unwrap();
+    for _ in 0..3 {
+        art.move_gripper(Vec3::new(0.0, 1.0, 0.0), n - 1).unwrap();
+    }
+    // The farthest loaded joint has the longest lever against its brake, so
+    // it turns most (about 0.33 rad here); the two beyond it must not turn at all.
+    let q = art.joint_positions();
+    assert!(
+        q[..2].iter().all(|v| *v == 0.0),
+        "joints beyond the fifth moved: {q:?}"
+    );
+    assert!(
+        q[2] > 0.1,
+        "the fifth joint from the grasp carried no load: {q:?}"
+    );
+}
