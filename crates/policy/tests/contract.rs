@@ -8,28 +8,11 @@
     reason = "tests and benchmarks fail by panicking"
 )]
 use ndarray::{Array, ArrayD, IxDyn};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use umpnet_policy::ModelPackage;
 
-/// The package, or None (the test is skipped, with the reason printed). In CI
-/// (CI=true) a missing fixture fails: a silent pass would hide a broken contract.
-fn fixture() -> Option<PathBuf> {
-    let Some(dir) = std::env::var_os("UMPNET_FIXTURE") else {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "UMPNET_FIXTURE not set under CI=true (make test sets it)"
-        );
-        eprintln!("skipped: UMPNET_FIXTURE not set (make test sets it)");
-        return None;
-    };
-    let dir = PathBuf::from(dir);
-    assert!(
-        dir.join("model.json").is_file(),
-        "UMPNET_FIXTURE={} has no model.json",
-        dir.display()
-    );
-    Some(dir)
-}
+mod common;
+use common::fixture;
 
 fn read_bin(dir: &Path, entry: &serde_json::Value) -> (String, ArrayD<f32>, Vec<i64>) {
     let name = entry["name"].as_str().unwrap().to_string();

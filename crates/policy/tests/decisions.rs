@@ -18,24 +18,17 @@ use nalgebra::Vector3;
 use ndarray::{Array3, Axis};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use std::path::PathBuf;
 use std::sync::Arc;
 use umpnet_policy::cem::Mode;
 use umpnet_policy::policy::GOAL_DIFF_M;
 use umpnet_policy::{CHANNELS, DecisionInput, ModelPackage, UmpnetPolicy};
 
-/// The fixture's package `name` ("" for the untrained one), or None (skipped,
-/// with the reason printed; under CI=true a missing fixture fails).
+mod common;
+
+/// The fixture's package `name` ("" for the untrained one), or None (skipped;
+/// see `common::fixture`).
 fn policy(name: &str) -> Option<UmpnetPolicy> {
-    let Some(dir) = std::env::var_os("UMPNET_FIXTURE") else {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "UMPNET_FIXTURE not set under CI=true (make test sets it)"
-        );
-        eprintln!("skipped: UMPNET_FIXTURE not set (make test sets it)");
-        return None;
-    };
-    let dir = PathBuf::from(dir).join(name);
+    let dir = common::fixture()?.join(name);
     let package = ModelPackage::load(&dir, 1, 1, None)
         .unwrap_or_else(|e| panic!("{}: {e} (rebuild the fixture)", dir.display()));
     Some(UmpnetPolicy::new(Arc::new(package)))
