@@ -99,6 +99,12 @@ class Result:
     umpnet: list
     ms_reference: float
     ms_umpnet: float
+    # Per action: the commanded unit vector, and PyBullet's step count and
+    # mount position after it (the golden data of crates/sim/tests, golden.py).
+    directions: list = field(default_factory=list)
+    reference_steps: list = field(default_factory=list)
+    reference_mount: list = field(default_factory=list)
+    umpnet_steps: list = field(default_factory=list)
 
     @property
     def deviation(self) -> np.ndarray:
@@ -247,17 +253,24 @@ def run_case(case: Case, physics: str = "reference") -> Result:
         ref.grasp(case.point, case.link)
         trajectory = {"reference": [], "umpnet": []}
         seconds = {"reference": 0.0, "umpnet": 0.0}
+        record = {"directions": [], "reference_steps": [], "reference_mount": [], "umpnet_steps": []}
         for d in case.directions:
             # One commanded vector for both: the opening direction is taken on umpnet's state.
             if isinstance(d, str):
                 d = _tangent(art, case.joint, -1.0 if d.startswith("-") else 1.0)
             d = [float(v) for v in d]
             t = time.perf_counter()
-            trajectory["umpnet"].append(art.move_gripper(d, case.joint)["joint_after"])
+            ours = art.move_gripper(d, case.joint)
             seconds["umpnet"] += time.perf_counter() - t
             t = time.perf_counter()
-            trajectory["reference"].append(ref.move(d, case.joint).joint_after)
+            theirs = ref.move(d, case.joint)
             seconds["reference"] += time.perf_counter() - t
+            trajectory["umpnet"].append(ours["joint_after"])
+            trajectory["reference"].append(theirs.joint_after)
+            record["directions"].append(d)
+            record["umpnet_steps"].append(int(ours["steps"]))
+            record["reference_steps"].append(theirs.steps)
+            record["reference_mount"].append([float(v) for v in ref.mount_position()])
         n = max(1, len(case.directions))
         return Result(
             case,
@@ -265,6 +278,7 @@ def run_case(case: Case, physics: str = "reference") -> Result:
             trajectory["umpnet"],
             1e3 * seconds["reference"] / n,
             1e3 * seconds["umpnet"] / n,
+            **record,
         )
     finally:
         ref.close()

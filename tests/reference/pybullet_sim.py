@@ -101,7 +101,7 @@ class ReferenceSim:
         s = self.bc.getLinkState(self.body, link, computeForwardKinematics=True)
         return s[0], s[1]
 
-    def _mount_position(self) -> np.ndarray:
+    def mount_position(self) -> np.ndarray:
         q = [self.bc.getJointState(self.mount, i)[0] for i in range(3)]
         return np.array(q) + MOUNT_HOME
 
@@ -118,7 +118,7 @@ class ReferenceSim:
         still = 0
         for step in range(MAX_STEPS):
             self.bc.stepSimulation()
-            now = self._mount_position()
+            now = self.mount_position()
             still += int(np.linalg.norm(now - last) < STILL_DISPLACEMENT)
             last = now
             if still >= STILL_STEPS:

@@ -289,7 +289,10 @@ impl ReferenceArticulation {
             self.update(target, gain, h, k);
             steps += k;
             let after = self.gripper_position().unwrap_or(before);
-            if (after - before).length() / (k as f32) < still_disp {
+            // The reference measures its first step from a far-away sentinel,
+            // so that step never counts as still: a stalled drive takes 4
+            // steps there, not 3.
+            if steps > k && (after - before).length() / (k as f32) < still_disp {
                 still += k;
                 if still >= still_needed {
                     break;
