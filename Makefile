@@ -69,6 +69,8 @@ lint: install
 	cargo clippy --release --workspace --all-targets $(CARGO_FEATURES) -- -D warnings
 	.venv/bin/ruff check tests train_py crates/py scripts benches
 	.venv/bin/ruff format --check tests train_py crates/py scripts benches
+	# One feature set per shared crate across test, build and maturin (crates/workspace-hack).
+	$(PY) scripts/feature_sets.py
 
 test-rust: fixture
 	UMPNET_REQUIRE_WGPU=1 cargo test --release $(CARGO_FEATURES)

@@ -105,6 +105,7 @@ class Result:
     reference_steps: list = field(default_factory=list)
     reference_mount: list = field(default_factory=list)
     umpnet_steps: list = field(default_factory=list)
+    reference_grasp: list = field(default_factory=list)  # the mount after the grasp
 
     @property
     def deviation(self) -> np.ndarray:
@@ -254,6 +255,7 @@ def run_case(case: Case, physics: str = "reference") -> Result:
         trajectory = {"reference": [], "umpnet": []}
         seconds = {"reference": 0.0, "umpnet": 0.0}
         record = {"directions": [], "reference_steps": [], "reference_mount": [], "umpnet_steps": []}
+        record["reference_grasp"] = [float(v) for v in ref.mount_position()]
         for d in case.directions:
             # One commanded vector for both: the opening direction is taken on umpnet's state.
             if isinstance(d, str):

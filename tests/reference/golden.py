@@ -5,8 +5,8 @@ simulator without Python.
 
     .venv/bin/python tests/reference/golden.py   # rewrites crates/sim/tests/data/
 
-The cases: the differential suite's cabinet (differential.py), and a light
-part (a 50 g switch) that PyBullet's solve barely moves. Directions are
+The cases: the differential suite's cabinet (differential.py) and a hatch
+driven to both its limits (neither at 0). Directions are
 resolved once here and stored as vectors; the Rust test replays them as
 they are. `--gaps` prints the cases where the two part ways (known_gaps).
 """
@@ -29,11 +29,11 @@ ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "crates" / "sim" / "tests" / "data"
 
 # A door (hinged about -z at its left edge) carrying a flap hinged along its
-# lower edge and a tray that slides out of it; and a light switch on the
-# base. Grasping the flap or the tray loads two joints at once: the known
+# lower edge and a tray that slides out of it; on the base, a hatch whose
+# limits are both away from 0 and a light switch. Grasping the flap or the tray loads two joints at once: the known
 # gaps below.
-CHAIN_URDF = """<?xml version="1.0"?>
-<robot name="chain">
+PARTS_URDF = """<?xml version="1.0"?>
+<robot name="parts">
   <link name="base">
     <inertial><origin xyz="0 0 0.5"/><mass value="10"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
     <visual><origin xyz="0 0 0.5"/><geometry><box size="0.6 0.5 1.0"/></geometry></visual>
@@ -65,6 +65,15 @@ CHAIN_URDF = """<?xml version="1.0"?>
     <origin xyz="0.3 -0.02 0.15"/><axis xyz="0 -1 0"/>
     <limit lower="0" upper="0.15" effort="100" velocity="1"/>
   </joint>
+  <link name="hatch">
+    <inertial><origin xyz="0 -0.01 -0.2"/><mass value="2"/><inertia ixx="0.03" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.01"/></inertial>
+    <visual><origin xyz="0 -0.01 -0.2"/><geometry><box size="0.2 0.02 0.4"/></geometry></visual>
+  </link>
+  <joint name="hatch_hinge" type="revolute">
+    <parent link="base"/><child link="hatch"/>
+    <origin xyz="-0.15 -0.25 0.45"/><axis xyz="1 0 0"/>
+    <limit lower="-0.6" upper="0.3" effort="100" velocity="1"/>
+  </joint>
   <link name="switch">
     <inertial><origin xyz="0 -0.02 0.02"/><mass value="0.05"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1e-5"/></inertial>
     <visual><origin xyz="0 -0.02 0.02"/><geometry><box size="0.03 0.04 0.06"/></geometry></visual>
@@ -78,46 +87,37 @@ CHAIN_URDF = """<?xml version="1.0"?>
 """
 
 
-def chain_cases(folder: Path) -> list[D.Case]:
-    urdf = str(folder / "chain.urdf")
-    Path(urdf).write_text(CHAIN_URDF)
-    rng = np.random.default_rng(7)
-
-    def mixed(n: int) -> list:
-        out = []
-        for k in range(n):
-            if k % 3 == 2:
-                d = rng.normal(size=3)
-                out.append(list(d / np.linalg.norm(d)))
-            else:
-                out.append("tangent" if rng.random() < 0.75 else "-tangent")
-        return out
-
-    cases = [
-        D.Case(
-            "50 g switch flicked up and down",
-            urdf=urdf,
-            joint="switch_toggle",
-            link="switch",
-            kind="revolute",
-            point=[0.2, -0.29, 0.2],
-            directions=[[0.0, 0.0, 1.0]] * 2 + [[0.0, 0.0, -1.0]] * 3 + mixed(3),
-        ),
-    ]
-    for c in cases:
-        c.point = D._world(c, c.point)
-    return cases
+def parts_cases(folder: Path) -> list[D.Case]:
+    urdf = str(folder / "parts.urdf")
+    Path(urdf).write_text(PARTS_URDF)
+    # Both limits away from 0: out to -0.6 rad, then in to 0.3 rad.
+    hatch = D.Case(
+        "hatch along its arc out to its lower limit, then in to its upper",
+        urdf=urdf,
+        joint="hatch_hinge",
+        link="hatch",
+        kind="revolute",
+        point=[-0.15, -0.27, 0.07],
+        directions=["-tangent"] * 5 + ["tangent"] * 6,
+    )
+    hatch.point = D._world(hatch, hatch.point)
+    return [hatch]
 
 
 def known_gaps(folder: Path) -> list[D.Case]:
     """Cases where umpnet and PyBullet part ways (not stored; `--gaps` prints
-    them): parts on a chain of two joints. PyBullet's unconverged solve lets
-    a light flap hinged on a door pass its lower limit by more than a radian,
-    where umpnet's holds it; a tray sliding out of a door ends 0.02-0.03 m
-    off."""
-    urdf = str(folder / "chain.urdf")
-    Path(urdf).write_text(CHAIN_URDF)
+    them), all where PyBullet's 50 sweeps are far from converged:
+    - parts on a chain of two joints: PyBullet lets a light flap hinged on a
+      door pass its lower limit by more than a radian, where umpnet's solve
+      holds it; a tray sliding out of a door ends 0.02-0.03 m off;
+    - a 50 g switch on this body: PyBullet flicks it to its limits in one
+      action, umpnet does not move it. Before the hatch was added to the body,
+      PyBullet did not move it either: its result depends on the body's
+      other links, which umpnet's chain-only solve leaves out."""
+    urdf = str(folder / "parts.urdf")
+    Path(urdf).write_text(PARTS_URDF)
     flap = {"urdf": urdf, "joint": "flap_hinge", "link": "flap", "kind": "revolute"}
+    up, down = [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]
     cases = [
         D.Case("flap on a door, pulled out", point=[0.1, -0.28, 0.45], directions=[[0.0, -1.0, 0.0]] * 6, **flap),
         D.Case(
@@ -135,6 +135,15 @@ def known_gaps(folder: Path) -> list[D.Case]:
             kind="prismatic",
             point=[0.0, -0.28, 0.75],
             directions=[[0.0, -1.0, 0.0]] * 3 + [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]],
+        ),
+        D.Case(
+            "50 g switch flicked up and down",
+            urdf=urdf,
+            joint="switch_toggle",
+            link="switch",
+            kind="revolute",
+            point=[0.2, -0.29, 0.2],
+            directions=[up, up, down, down, down, "tangent", "-tangent", "tangent"],
         ),
     ]
     for c in cases:
@@ -155,6 +164,8 @@ def record(result: D.Result) -> dict:
         "scale": c.scale,
         "start": c.start,
         "point_in_world": [float(v) for v in c.point],
+        # The grasp's approach stops a few millimetres short of the point.
+        "gripper_after_grasp": [round(v, 7) for v in result.reference_grasp],
         "actions": [
             {
                 "direction": [round(v, 7) for v in d],
@@ -179,7 +190,7 @@ def main() -> None:
             print(D.table([D.run_case(c) for c in known_gaps(Path(tmp))]))
         return
     OUT.mkdir(parents=True, exist_ok=True)
-    cases = D.cabinet_cases(OUT) + chain_cases(OUT)
+    cases = D.cabinet_cases(OUT) + parts_cases(OUT)
     results = [D.run_case(c) for c in cases]
     print(D.table(results))
     for r in results:

@@ -116,3 +116,84 @@ fn the_planning_oracle_wastes_no_step_on_short_sliders() {
     assert!(planned >= 0.9, "planned oracle ratio {planned}");
     assert!(planned > plain, "planned {planned} against plain {plain}");
 }
+
+#[test]
+fn the_hook_sees_the_grasp_then_each_action_in_order() {
+    let scene = benchmark_scene(
+        0,
+        Task::Exploration,
+        Category::Door,
+        1,
+        0,
+        Default::default(),
+    )
+    .unwrap();
+    let mut oracle = umpnet_eval::scripted_policy("oracle").unwrap();
+    let mut seen: Vec<(usize, Option<[f32; 3]>, f32)> = Vec::new();
+    let mut hook = |h: &umpnet_eval::episode::HookFrame<'_>| {
+        let q = h.env.articulation().joint_positions().iter().sum::<f32>();
+        seen.push((h.t, h.step.map(|s| s.record.direction), q));
+    };
+    let ep = run_episode(
+        &scene,
+        &Camera::reference(48, 64),
+        Box::new(CpuRenderer::default()),
+        oracle.as_mut(),
+        EpisodeConfig {
+            budget: 4,
+            seed: 1,
+            protocol: Protocol::Strict,
+        },
+        Some(&mut hook),
+    )
+    .unwrap();
+    assert_eq!(ep.steps.len(), 4);
+    let ts: Vec<usize> = seen.iter().map(|s| s.0).collect();
+    assert_eq!(ts, [0, 1, 2, 3, 4], "frame indices");
+    assert_eq!(seen[0].1, None, "the grasp has no direction step");
+    for (t, step) in ep.steps.iter().enumerate() {
+        assert_eq!(seen[t + 1].1, Some(step.record.direction));
+    }
+    // Each frame comes after its action: the oracle opens the door.
+    assert!(seen[4].2 > seen[0].2, "{seen:?}");
+}
+
+#[test]
+fn the_paper_ends_a_goal_episode_only_where_the_goal_is_reached() {
+    let mut longer = 0;
+    for k in 0..6 {
+        let ep = run(Task::Goal, Category::Door, k, Protocol::Paper);
+        let (Some(goal), Some(joint)) = (ep.scene.goal.as_ref(), ep.joint) else {
+            continue;
+        };
+        let model = ep.scene.load_model().unwrap();
+        let jm = &model.joints[joint];
+        let thr = umpnet_eval::protocol::threshold(jm.kind.is_prismatic(), jm.lower, jm.upper);
+        for (t, step) in ep.steps.iter().enumerate() {
+            let l = &step.record.labels;
+            let reached = goal.joint == joint
+                && umpnet_eval::protocol::reached_goal(
+                    l.joint_before,
+                    l.joint_after,
+                    goal.joints[joint],
+                    thr,
+                );
+            // Every step before the last went on because the goal was not
+            // reached; the last ended the episode only if it was.
+            let last = t + 1 == ep.steps.len();
+            assert_eq!(
+                reached,
+                last && ep.ended_by_protocol,
+                "Door #{k} step {t}: {l:?}, goal {}",
+                goal.joints[joint]
+            );
+        }
+        if ep.steps.len() > 1 {
+            longer += 1;
+        }
+    }
+    assert!(
+        longer >= 2,
+        "only {longer} episodes needed more than one step"
+    );
+}
