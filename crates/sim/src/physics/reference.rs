@@ -333,53 +333,10 @@ impl ReferenceArticulation {
         let erp = 1.0 - (1.0 - self.params.erp as f64).powi(k as i32);
         let point = self.world_from_link[s.link].transform_point(s.point_in_link);
 
-        // Each chain joint's axis and origin in world, and its motion subspace
-        // at a point: v = axis x (p - origin) for a hinge, axis for a slider.
         // Fixed-size: this runs at every 1/240 s step, hundreds of times per action.
-        let mut axes = [(JointKind::Fixed, Vec3::ZERO, Vec3::ZERO); MAX_CHAIN];
-        for (slot, &j) in axes.iter_mut().zip(&s.chain) {
-            let jm = &self.model.joints[j];
-            let pose = self.world_from_link[jm.parent] * jm.parent_from_joint;
-            *slot = (jm.kind, pose.rotation * jm.axis_in_joint, pose.translation);
-        }
-        let linear = |a: usize, at: Vec3| -> Vec3 {
-            let (kind, axis, origin) = axes[a];
-            if kind.is_prismatic() {
-                axis
-            } else {
-                axis.cross(at - origin)
-            }
-        };
-        let angular = |a: usize| -> Vec3 {
-            let (kind, axis, _) = axes[a];
-            if kind.is_prismatic() {
-                Vec3::ZERO
-            } else {
-                axis
-            }
-        };
-
-        // Joint-space mass matrix of the chain; a deeper joint's moved links are
-        // a subset of a shallower one's.
-        let mut mass = [0.0f64; MAX_CHAIN * MAX_CHAIN];
-        for b in 0..n {
-            for &l in &s.moved[b] {
-                let link = &self.model.links[l];
-                let pose = self.world_from_link[l];
-                let com = pose.transform_point(link.com_in_link);
-                let rot = crate::math::Mat3::from_quat(pose.rotation);
-                let inertia = rot * link.inertia_in_link * rot.transpose();
-                for a in 0..=b {
-                    let (va, vb) = (linear(a, com), linear(b, com));
-                    let (wa, wb) = (angular(a), angular(b));
-                    let m = (link.mass * va.dot(vb) + wa.dot(inertia * wb)) as f64;
-                    mass[a * n + b] += m;
-                    if a != b {
-                        mass[b * n + a] += m;
-                    }
-                }
-            }
-        }
+        let axes = chain_axes(&self.model, &self.world_from_link, &s.chain);
+        let linear = |a: usize, at: Vec3| linear(&axes[a], at);
+        let mut mass = chain_mass(&self.model, &self.world_from_link, &axes[..n], &s.moved);
         for a in 0..n {
             // Guards a massless chain; far below any real link's inertia.
             mass[a * n + a] += 1e-9;
@@ -491,6 +448,76 @@ impl ReferenceArticulation {
     }
 }
 
+/// A chain joint in world: its kind, axis and origin.
+type WorldAxis = (JointKind, Vec3, Vec3);
+
+/// Each chain joint's axis and origin in world (unused slots: fixed).
+fn chain_axes(
+    model: &ObjectModel,
+    world_from_link: &[Pose3],
+    chain: &[usize],
+) -> [WorldAxis; MAX_CHAIN] {
+    let mut axes = [(JointKind::Fixed, Vec3::ZERO, Vec3::ZERO); MAX_CHAIN];
+    for (slot, &j) in axes.iter_mut().zip(chain) {
+        let jm = &model.joints[j];
+        let pose = world_from_link[jm.parent] * jm.parent_from_joint;
+        *slot = (jm.kind, pose.rotation * jm.axis_in_joint, pose.translation);
+    }
+    axes
+}
+
+/// The velocity of the point `at` per unit speed of the joint (its motion
+/// subspace): axis x (at - origin) for a hinge, the axis for a slider.
+fn linear(&(kind, axis, origin): &WorldAxis, at: Vec3) -> Vec3 {
+    if kind.is_prismatic() {
+        axis
+    } else {
+        axis.cross(at - origin)
+    }
+}
+
+/// The angular velocity per unit speed of the joint.
+fn angular(&(kind, axis, _): &WorldAxis) -> Vec3 {
+    if kind.is_prismatic() {
+        Vec3::ZERO
+    } else {
+        axis
+    }
+}
+
+/// The chain's joint-space mass matrix (n x n, row-major, n = `axes.len()`):
+/// `qd' M qd / 2` is the kinetic energy of every link the chain moves. A
+/// deeper joint's moved links are a subset of a shallower one's, so link `l`
+/// moved by joint `b` is moved by every `a <= b`.
+fn chain_mass(
+    model: &ObjectModel,
+    world_from_link: &[Pose3],
+    axes: &[WorldAxis],
+    moved: &[Vec<usize>],
+) -> [f64; MAX_CHAIN * MAX_CHAIN] {
+    let n = axes.len();
+    let mut mass = [0.0f64; MAX_CHAIN * MAX_CHAIN];
+    for b in 0..n {
+        for &l in &moved[b] {
+            let link = &model.links[l];
+            let pose = world_from_link[l];
+            let com = pose.transform_point(link.com_in_link);
+            let rot = crate::math::Mat3::from_quat(pose.rotation);
+            let inertia = rot * link.inertia_in_link * rot.transpose();
+            for a in 0..=b {
+                let (va, vb) = (linear(&axes[a], com), linear(&axes[b], com));
+                let (wa, wb) = (angular(&axes[a]), angular(&axes[b]));
+                let m = (link.mass * va.dot(vb) + wa.dot(inertia * wb)) as f64;
+                mass[a * n + b] += m;
+                if a != b {
+                    mass[b * n + a] += m;
+                }
+            }
+        }
+    }
+    mass
+}
+
 /// Re-poses the children of `joints` (parent first): the links the grasped
 /// chain moves; the rest did not move.
 fn repose(model: &ObjectModel, q: &[f32], world_from_link: &mut [Pose3], joints: &[usize]) {
@@ -501,5 +528,104 @@ fn repose(model: &ObjectModel, q: &[f32], world_from_link: &mut [Pose3], joints:
         let parent = world_from_link[joint.parent];
         world_from_link[joint.child] =
             parent * joint.parent_from_joint * joint_motion(joint.kind, joint.axis_in_joint, qj);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        reason = "tests fail by panicking"
+    )]
+    use super::*;
+    use crate::urdf::parse_urdf;
+
+    /// A hinge about z, a slider along its link's x, and a hinge about that
+    /// link's y: every pair of joints couples, with offset centres of mass.
+    const CHAIN: &str = r#"<?xml version="1.0"?>
+<robot name="chain">
+  <link name="base"/>
+  <link name="a"><inertial><origin xyz="0.2 0.05 0"/><mass value="2"/><inertia ixx="0.02" ixy="0.001" ixz="0" iyy="0.05" iyz="0" izz="0.06"/></inertial></link>
+  <link name="b"><inertial><origin xyz="0.1 0 0.03"/><mass value="0.7"/><inertia ixx="0.004" ixy="0" ixz="0.0005" iyy="0.003" iyz="0" izz="0.005"/></inertial></link>
+  <link name="c"><inertial><origin xyz="0 0.04 -0.15"/><mass value="1.3"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.012" iyz="0.001" izz="0.003"/></inertial></link>
+  <joint name="hinge" type="revolute"><parent link="base"/><child link="a"/><origin xyz="0.1 -0.2 0.5"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="slide" type="prismatic"><parent link="a"/><child link="b"/><origin xyz="0.3 0 0" rpy="0 0 0.3"/><axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="tilt" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.2 0 0"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>"#;
+
+    fn poses(model: &ObjectModel, q: &[f32]) -> Vec<Pose3> {
+        let mut out = vec![Pose3::IDENTITY; model.links.len()];
+        forward_kinematics(model, Pose3::IDENTITY, q, &mut out);
+        out
+    }
+
+    /// The kinetic energy of every link at joint speeds `qd`, from finite
+    /// differences of the link poses alone (no Jacobians).
+    fn kinetic_energy(model: &ObjectModel, q: &[f32], qd: &[f32]) -> f64 {
+        let eps = 1e-3f32;
+        let moved: Vec<f32> = q.iter().zip(qd).map(|(q, v)| q + eps * v).collect();
+        let (now, next) = (poses(model, q), poses(model, &moved));
+        let mut energy = 0.0;
+        for (l, link) in model.links.iter().enumerate() {
+            let v = (next[l].transform_point(link.com_in_link)
+                - now[l].transform_point(link.com_in_link))
+                / eps;
+            let (axis, angle) = (next[l].rotation * now[l].rotation.inverse()).to_axis_angle();
+            let w = axis * angle / eps;
+            let rot = crate::math::Mat3::from_quat(now[l].rotation);
+            let inertia = rot * link.inertia_in_link * rot.transpose();
+            energy += 0.5 * f64::from(link.mass * v.dot(v) + w.dot(inertia * w));
+        }
+        energy
+    }
+
+    #[test]
+    fn the_chain_mass_matrix_gives_the_links_kinetic_energy() {
+        let model = parse_urdf(CHAIN, std::path::Path::new("chain.urdf")).unwrap();
+        let tip = model.links.iter().position(|l| l.name == "c").unwrap();
+        let chain = movable_chain(&model, tip);
+        assert_eq!(chain.len(), 3);
+        let moved: Vec<Vec<usize>> = chain.iter().map(|&j| moved_links(&model, j)).collect();
+        let mut q = vec![0.0; model.joints.len()];
+        for (&j, v) in chain.iter().zip([0.7, 0.15, -0.4]) {
+            q[j] = v;
+        }
+        let world_from_link = poses(&model, &q);
+        let axes = chain_axes(&model, &world_from_link, &chain);
+        let mass = chain_mass(&model, &world_from_link, &axes[..3], &moved);
+        for speeds in [
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.8, -0.5, 1.2],
+            [-0.3, 0.9, 0.6],
+        ] {
+            let mut qd = vec![0.0; model.joints.len()];
+            for (&j, v) in chain.iter().zip(speeds) {
+                qd[j] = v;
+            }
+            let mut from_matrix = 0.0;
+            for a in 0..3 {
+                for b in 0..3 {
+                    from_matrix +=
+                        0.5 * f64::from(speeds[a]) * mass[a * 3 + b] * f64::from(speeds[b]);
+                }
+            }
+            let expected = kinetic_energy(&model, &q, &qd);
+            assert!(
+                (from_matrix - expected).abs() < 2e-3 * expected,
+                "speeds {speeds:?}: {from_matrix} from the matrix, {expected} from the poses"
+            );
+        }
+        for a in 0..3 {
+            for b in 0..3 {
+                assert_eq!(
+                    mass[a * 3 + b],
+                    mass[b * 3 + a],
+                    "not symmetric at ({a}, {b})"
+                );
+            }
+        }
     }
 }
