@@ -2,7 +2,7 @@
 reports as missed is one that docs/harmless-mutants.txt lists with its reason.
 
     .venv/bin/python scripts/cargo_mutants.py               # run every group, then check
-    .venv/bin/python scripts/cargo_mutants.py --group action  # one group (sim, action, eval, policy)
+    .venv/bin/python scripts/cargo_mutants.py --group action  # one group (sim, action, solver, eval, policy)
     .venv/bin/python scripts/cargo_mutants.py --check       # only check the last runs' reports
 
 Each group mutates one crate's modules and runs the tests that exercise them.
@@ -33,18 +33,22 @@ HARMLESS = ROOT / "docs" / "harmless-mutants.txt"
 # (report folder, crate, modules, extra arguments)
 GROUPS = [
     ("out/mutants-sim", "umpnet-sim", ["crates/sim/src/labels.rs"], []),
-    (
-        "out/mutants-action",
-        "umpnet-sim",
-        ["crates/sim/src/physics/reference.rs"],
-        # The tests that drive the action; the renderer's and the loader's
-        # take minutes at opt-level 0 and never reach it. A mutant that
-        # stops a drive from ending is a timeout (caught), not a 10-minute wait.
-        [
-            *(f"--cargo-test-arg={a}" for a in ["--lib", "--test=reference_physics", "--test=pybullet_golden"]),
-            *(f"--cargo-test-arg={a}" for a in ["--test=probe", "--test=physics"]),
-            "--timeout=240",
-        ],
+    *(
+        (
+            f"out/mutants-{name}",
+            "umpnet-sim",
+            [f"crates/sim/src/physics/{file}"],
+            # The tests that drive the action; the renderer's and the loader's
+            # take minutes at opt-level 0 and never reach it. A mutant that
+            # stops a drive from ending is a timeout (caught), not a 10-minute wait.
+            [
+                *(f"--cargo-test-arg={a}" for a in ["--lib", "--test=reference_physics", "--test=pybullet_golden"]),
+                *(f"--cargo-test-arg={a}" for a in ["--test=probe", "--test=physics"]),
+                "--timeout=240",
+            ],
+        )
+        # The action, and the Gauss-Seidel solver it calls at every step.
+        for name, file in [("action", "reference.rs"), ("solver", "pgs.rs")]
     ),
     (
         "out/mutants-eval",
