@@ -250,6 +250,23 @@ mod tests {
             }
         }
         assert!(invert(&[1.0, 2.0, 2.0, 4.0], 2).is_none());
+        // Zeros below the diagonal, larger entries below it than on it, and
+        // elimination that leaves a zero where a careless pivot would look:
+        // the pivot must be the largest entry of its column.
+        for m in [
+            [4.0, 0.0, 1.0, 0.0, 3.0, 0.0, 1.0, 0.0, 2.0],
+            [1.0, 2.0, 0.0, 2.0, 5.0, 0.0, 0.0, 0.0, 3.0],
+            [5.0, 5.0, -6.0, 5.0, 6.0, -6.0, -6.0, -6.0, 13.0],
+            [6.0, 3.0, 0.0, 3.0, 6.0, -6.0, 0.0, -6.0, 14.0],
+        ] {
+            let inv = invert(&m, 3).expect("invertible");
+            for r in 0..3 {
+                for c in 0..3 {
+                    let v: f64 = (0..3).map(|k| m[r * 3 + k] * inv[k * 3 + c]).sum();
+                    assert!((v - if r == c { 1.0 } else { 0.0 }).abs() < 1e-12, "{m:?}");
+                }
+            }
+        }
     }
 
     fn unit(i: usize, v: f64) -> [f64; MAX_DOFS] {
@@ -316,17 +333,35 @@ mod tests {
             let impulses = |rows: &[Row]| rows.iter().map(|r| r.impulse).collect::<Vec<_>>();
             assert_eq!(impulses(&general), impulses(&fast), "seed {seed}");
         }
-        // A row of three entries takes the general path.
-        let (mut rows, mut x) = door_rows(1);
-        rows.extend(Row::new(
+        // Rows the two-entry sweep cannot hold take the general path, with the
+        // general path's answer bit for bit: a row of three entries, and a
+        // limit on a two-joint chain (one Jacobian entry, a response on both
+        // joints and the mount).
+        let three_entries = Row::new(
             &[1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
             &[0.1, 0.1, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0],
             0.3,
             -1.0,
             1.0,
-        ));
-        solve(&mut rows, &mut x, 50);
-        assert!(x.iter().all(|v| v.is_finite()));
+        );
+        let wide_response = Row::new(
+            &unit(0, 1.0),
+            &[0.5, -0.2, 0.05, 0.0, 0.0, 0.0, 0.0, 0.0],
+            0.4,
+            0.0,
+            f64::INFINITY,
+        );
+        for extra in [three_entries, wide_response] {
+            let (mut rows, x0) = door_rows(1);
+            rows.extend(extra);
+            let (mut general, mut fast) = (rows.clone(), rows.clone());
+            let (mut x, mut xg, mut xf) = (x0, x0, x0);
+            solve(&mut rows, &mut x, 50);
+            solve_general(&mut general, &mut xg, 50);
+            solve_two_entry(&mut fast, &mut xf, 50);
+            assert_eq!(x, xg);
+            assert_ne!(xf, xg, "this row set needs the general sweep");
+        }
     }
 
     #[test]
