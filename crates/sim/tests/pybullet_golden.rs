@@ -69,7 +69,8 @@ struct Replay {
     joint_after: Vec<f32>,
     steps: Vec<usize>,
     gripper_after: Vec<Vec3>,
-    gripper_moved: Vec<f32>,
+    /// The grasped joint's limits on the placed (scaled) object.
+    limits: (f32, f32),
 }
 
 fn replay(case: &Case, steps_per_update: usize) -> Replay {
@@ -103,7 +104,7 @@ fn replay(case: &Case, steps_per_update: usize) -> Replay {
         joint_after: vec![],
         steps: vec![],
         gripper_after: vec![],
-        gripper_moved: vec![],
+        limits: (model.joints[joint].lower, model.joints[joint].upper),
     };
     for a in &case.actions {
         let before = art.gripper_position().unwrap();
@@ -117,7 +118,6 @@ fn replay(case: &Case, steps_per_update: usize) -> Replay {
         out.joint_after.push(o.joint_after);
         out.steps.push(o.steps);
         out.gripper_after.push(after);
-        out.gripper_moved.push((after - before).length());
         assert!(
             (o.gripper_moved - (after - before).length()).abs() < 1e-5,
             "{}: gripper_moved {} but the gripper went from {before} to {after}",
@@ -144,14 +144,7 @@ fn deviations(golden: &Golden, steps_per_update: usize, only: impl Fn(&Case) -> 
         // Held at a limit, the joint rests where PyBullet's does: only the
         // erp push-out of one step's overshoot is left between them (with
         // coarser updates the overshoot is several steps', so not there).
-        let model = parse_urdf(urdf_text(&case.urdf), std::path::Path::new(&case.urdf)).unwrap();
-        let jm = &model.joints[model.joint_by_name(&case.joint).unwrap()];
-        let scale = if case.kind == "prismatic" {
-            case.scale
-        } else {
-            1.0
-        };
-        let (lower, upper) = (jm.lower * scale, jm.upper * scale);
+        let (lower, upper) = ours.limits;
         for (k, (a, q)) in case.actions.iter().zip(&ours.joint_after).enumerate() {
             let at_limit =
                 (a.joint_after - lower).abs() < 0.002 || (a.joint_after - upper).abs() < 0.002;
