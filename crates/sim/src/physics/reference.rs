@@ -29,7 +29,7 @@
     reason = "vectors are sized from the validated model's joints and links"
 )]
 use super::kinematics::{forward_kinematics, joint_motion, movable_chain, moved_links};
-use super::pgs::{MAX_DOFS, Row, invert, solve};
+use super::pgs::{MAX_DOFS, Row, RowSpace, invert, solve};
 use super::{ActionOutcome, PhysicsConfig};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3};
@@ -126,6 +126,8 @@ pub(crate) struct ReferenceArticulation {
     world_from_link: Vec<Pose3>,
     mount: Option<Mount>,
     rows: Vec<Row>,
+    /// The solver's scratch, kept so that a step neither allocates nor clears it.
+    row_space: Box<RowSpace>,
 }
 
 impl ReferenceArticulation {
@@ -146,6 +148,7 @@ impl ReferenceArticulation {
             world_from_link: vec![Pose3::IDENTITY; model.links.len()],
             mount: None,
             rows: Vec::with_capacity(3 * MAX_CHAIN + 6),
+            row_space: Box::default(),
             model,
         };
         art.refresh_kinematics();
@@ -426,7 +429,12 @@ impl ReferenceArticulation {
             push(unit(a, 1.0), 0.0, -brake, brake);
         }
 
-        solve(&mut rows, &mut x, self.params.solver_iterations);
+        solve(
+            &mut rows,
+            &mut x,
+            self.params.solver_iterations,
+            &mut self.row_space,
+        );
         self.rows = rows;
 
         let max_speed = self.params.max_joint_speed as f64;
