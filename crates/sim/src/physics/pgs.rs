@@ -35,6 +35,7 @@ impl Row {
         lower: f64,
         upper: f64,
     ) -> Option<Row> {
+        debug_assert!(lower <= upper, "row bounds out of order: {lower} > {upper}");
         let d: f64 = jacobian.iter().zip(response).map(|(a, b)| a * b).sum();
         (d > 1e-12).then(|| Row {
             jacobian: Sparse::from_dense(jacobian),
@@ -235,7 +236,9 @@ impl RowSpace {
         let k = k & (ROW_SLOTS - 1);
         let u = self.wanted[k];
         // Plain comparisons rather than clamp, whose NaN and bound checks
-        // lengthen the chain of dependent updates (Row::new orders bounds).
+        // lengthen the chain of dependent updates (Row::new asserts
+        // lower <= upper in debug builds; every row the reference builds
+        // has them in order).
         let next = if u < self.lower[k] { self.lower[k] } else { u };
         let next = if next > self.upper[k] {
             self.upper[k]
