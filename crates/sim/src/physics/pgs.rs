@@ -526,6 +526,13 @@ mod tests {
         let mut x = [0.0; MAX_DOFS];
         solve(&mut rows, &mut x, 50, &mut RowSpace::default());
         assert_eq!((x[0], x[1]), (1.0, -2.0));
+        // Started warm from its own answer, a solve stays there: the
+        // impulses it starts from are already in the velocities.
+        let impulses: Vec<f64> = rows.iter().map(|r| r.impulse).collect();
+        assert_eq!(impulses, [2.0, -8.0]);
+        solve(&mut rows, &mut x, 50, &mut RowSpace::default());
+        assert_eq!((x[0], x[1]), (1.0, -2.0));
+        assert_eq!(rows.iter().map(|r| r.impulse).collect::<Vec<_>>(), impulses);
         // The door-like systems never converge in 50 sweeps: cut to fewer,
         // the answer changes, so every sweep ran.
         let (rows, x0) = door_rows(3);
