@@ -29,7 +29,7 @@
     reason = "vectors are sized from the validated model's joints and links"
 )]
 use super::kinematics::{forward_kinematics, joint_motion, movable_chain, moved_links};
-use super::pgs::{MAX_DOFS, Row, RowSpace, invert, solve};
+use super::pgs::{MAX_DOFS, MAX_ROWS, Row, RowSpace, invert, solve};
 use super::{ActionOutcome, PhysicsConfig};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3};
@@ -147,7 +147,7 @@ impl ReferenceArticulation {
             qd: vec![0.0; n],
             world_from_link: vec![Pose3::IDENTITY; model.links.len()],
             mount: None,
-            rows: Vec::with_capacity(3 * MAX_CHAIN + 6),
+            rows: Vec::with_capacity(MAX_ROWS),
             row_space: Box::default(),
             model,
         };
