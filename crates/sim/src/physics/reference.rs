@@ -29,7 +29,7 @@
     reason = "vectors are sized from the validated model's joints and links"
 )]
 use super::kinematics::{forward_kinematics, joint_motion, movable_chain, moved_links};
-use super::pgs::{MAX_DOFS, MAX_ROWS, Row, RowSpace, invert, solve};
+use super::pgs::{MAX_DOFS, RowSpace, invert, solve};
 use super::{ActionOutcome, PhysicsConfig};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3};
@@ -125,8 +125,7 @@ pub(crate) struct ReferenceArticulation {
     qd: Vec<f32>,
     world_from_link: Vec<Pose3>,
     mount: Option<Mount>,
-    rows: Vec<Row>,
-    /// The solver's scratch, kept so that a step neither allocates nor clears it.
+    /// The solver's rows, kept so that a step neither allocates nor clears them.
     row_space: Box<RowSpace>,
 }
 
@@ -147,7 +146,6 @@ impl ReferenceArticulation {
             qd: vec![0.0; n],
             world_from_link: vec![Pose3::IDENTITY; model.links.len()],
             mount: None,
-            rows: Vec::with_capacity(MAX_ROWS),
             row_space: Box::default(),
             model,
         };
@@ -355,8 +353,8 @@ impl ReferenceArticulation {
         // light part held by the heavy mount does not converge in that many,
         // and the reference's light parts (switches, knobs) barely move
         // because of it.
-        let mut rows = std::mem::take(&mut self.rows);
-        rows.clear();
+        let space = &mut *self.row_space;
+        space.begin(n + 3);
         let mut push = |jacobian: [f64; MAX_DOFS], target: f64, lower: f64, upper: f64| {
             let mut response = [0.0; MAX_DOFS];
             for a in 0..n {
@@ -365,7 +363,7 @@ impl ReferenceArticulation {
             for i in 0..3 {
                 response[n + i] = jacobian[n + i] / mount_mass;
             }
-            rows.extend(Row::new(&jacobian, &response, target, lower, upper));
+            space.push(&jacobian, &response, target, lower, upper);
         };
         let unit = |i: usize, sign: f64| {
             let mut j = [0.0; MAX_DOFS];
@@ -382,10 +380,14 @@ impl ReferenceArticulation {
         // The suction, per world axis: point velocity minus mount velocity.
         let suction_bound = (self.suction_max_force * h) as f64;
         let gap = point - mount.position;
+        let mut point_velocity = [Vec3::ZERO; MAX_CHAIN];
+        for (a, v) in point_velocity.iter_mut().enumerate().take(n) {
+            *v = linear(a, point);
+        }
         for i in 0..3 {
             let mut jac = [0.0; MAX_DOFS];
-            for (a, ja) in jac.iter_mut().enumerate().take(n) {
-                *ja = linear(a, point)[i] as f64;
+            for (ja, v) in jac.iter_mut().zip(&point_velocity).take(n) {
+                *ja = v[i] as f64;
             }
             jac[n + i] = -1.0;
             push(
@@ -429,13 +431,7 @@ impl ReferenceArticulation {
             push(unit(a, 1.0), 0.0, -brake, brake);
         }
 
-        solve(
-            &mut rows,
-            &mut x,
-            self.params.solver_iterations,
-            &mut self.row_space,
-        );
-        self.rows = rows;
+        solve(&mut x, self.params.solver_iterations, &mut self.row_space);
 
         let max_speed = self.params.max_joint_speed as f64;
         let mut chain_buf = [0usize; MAX_CHAIN];
