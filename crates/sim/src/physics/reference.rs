@@ -100,7 +100,15 @@ struct Suction {
     /// The joints whose child the chain moves, parent first: all that an
     /// update re-poses (a sibling part does not move).
     reposed: Vec<usize>,
+    /// The chain's inverse mass matrix when it cannot change: one joint, on
+    /// a parent that stays still, turns (or slides) its links about (along)
+    /// its own axis, which keeps their inertia about it. Longer chains
+    /// change theirs as they move and compute it at every update.
+    fixed_inverse_mass: Option<ChainMatrix>,
 }
+
+/// A chain's joint-space matrix, row-major in the first n x n entries.
+type ChainMatrix = [f64; MAX_CHAIN * MAX_CHAIN];
 
 #[derive(Clone)]
 struct Mount {
@@ -229,6 +237,10 @@ impl ReferenceArticulation {
             None => Vec::new(),
         };
         let point_in_link = self.world_from_link[link].inverse_transform_point(point_in_world);
+        let fixed_inverse_mass = match chain.len() {
+            1 => chain_inverse_mass(&self.model, &self.world_from_link, &chain, &moved),
+            _ => None,
+        };
         if let Some(m) = self.mount.as_mut() {
             m.suction = Some(Suction {
                 link,
@@ -236,6 +248,7 @@ impl ReferenceArticulation {
                 chain,
                 moved,
                 reposed,
+                fixed_inverse_mass,
             });
         }
         Ok(())
@@ -337,12 +350,11 @@ impl ReferenceArticulation {
         // Fixed-size: this runs at every 1/240 s step, hundreds of times per action.
         let axes = chain_axes(&self.model, &self.world_from_link, &s.chain);
         let linear = |a: usize, at: Vec3| linear(&axes[a], at);
-        let mut mass = chain_mass(&self.model, &self.world_from_link, &axes[..n], &s.moved);
-        for a in 0..n {
-            // Guards a massless chain; far below any real link's inertia.
-            mass[a * n + a] += 1e-9;
-        }
-        let Some(inv_mass) = invert(&mass, n) else {
+        let inverse_mass = match s.fixed_inverse_mass {
+            Some(m) => Some(m),
+            None => chain_inverse_mass(&self.model, &self.world_from_link, &s.chain, &s.moved),
+        };
+        let Some(inv_mass) = inverse_mass else {
             return;
         };
 
@@ -355,7 +367,9 @@ impl ReferenceArticulation {
         // because of it.
         let space = &mut *self.row_space;
         space.begin(n + 3);
-        let mut push = |jacobian: [f64; MAX_DOFS], target: f64, lower: f64, upper: f64| {
+        // A row's response: the chain's inverse mass on the chain's part of
+        // its Jacobian, the mount's on the mount's.
+        let response_of = |jacobian: &[f64; MAX_DOFS]| {
             let mut response = [0.0; MAX_DOFS];
             for a in 0..n {
                 response[a] = (0..n).map(|b| inv_mass[a * n + b] * jacobian[b]).sum();
@@ -363,7 +377,20 @@ impl ReferenceArticulation {
             for i in 0..3 {
                 response[n + i] = jacobian[n + i] / mount_mass;
             }
-            space.push(&jacobian, &response, target, lower, upper);
+            response
+        };
+        // A row on one velocity (a motor, a limit, a brake): its response is
+        // a column of the inverse mass.
+        let unit_response = |i: usize, sign: f64| {
+            let mut response = [0.0; MAX_DOFS];
+            if i < n {
+                for (a, r) in response.iter_mut().enumerate().take(n) {
+                    *r = inv_mass[a * n + i] * sign;
+                }
+            } else {
+                response[i] = sign / mount_mass;
+            }
+            response
         };
         let unit = |i: usize, sign: f64| {
             let mut j = [0.0; MAX_DOFS];
@@ -390,8 +417,9 @@ impl ReferenceArticulation {
                 *ja = v[i] as f64;
             }
             jac[n + i] = -1.0;
-            push(
-                jac,
+            space.push(
+                &jac,
+                &response_of(&jac),
                 -(gap[i] as f64) * erp / hk,
                 -suction_bound,
                 suction_bound,
@@ -399,8 +427,9 @@ impl ReferenceArticulation {
         }
         // The mount's three velocity motors.
         for i in 0..3 {
-            push(
-                unit(n + i, 1.0),
+            space.push(
+                &unit(n + i, 1.0),
+                &unit_response(n + i, 1.0),
                 desired[i] as f64,
                 -motor_bound,
                 motor_bound,
@@ -422,13 +451,19 @@ impl ReferenceArticulation {
                 } else {
                     -gap * erp / hk
                 };
-                push(unit(a, sign), target, 0.0, f64::INFINITY);
+                space.push(
+                    &unit(a, sign),
+                    &unit_response(a, sign),
+                    target,
+                    0.0,
+                    f64::INFINITY,
+                );
             }
         }
         // The default velocity motor of each chain joint: a dry brake.
         let brake = (self.params.brake_impulse * k as f32) as f64;
         for a in 0..n {
-            push(unit(a, 1.0), 0.0, -brake, brake);
+            space.push(&unit(a, 1.0), &unit_response(a, 1.0), 0.0, -brake, brake);
         }
 
         solve(&mut x, self.params.solver_iterations, &mut self.row_space);
@@ -489,6 +524,23 @@ fn angular(&(kind, axis, _): &WorldAxis) -> Vec3 {
     }
 }
 
+/// The inverse of the chain's mass matrix; None when it is singular.
+fn chain_inverse_mass(
+    model: &ObjectModel,
+    world_from_link: &[Pose3],
+    chain: &[usize],
+    moved: &[Vec<usize>],
+) -> Option<ChainMatrix> {
+    let n = chain.len();
+    let axes = chain_axes(model, world_from_link, chain);
+    let mut mass = chain_mass(model, world_from_link, &axes[..n], moved);
+    for a in 0..n {
+        // Guards a massless chain; far below any real link's inertia.
+        mass[a * n + a] += 1e-9;
+    }
+    invert(&mass, n)
+}
+
 /// The chain's joint-space mass matrix (n x n, row-major, n = `axes.len()`):
 /// `qd' M qd / 2` is the kinetic energy of every link the chain moves. A
 /// deeper joint's moved links are a subset of a shallower one's, so link `l`
@@ -498,7 +550,7 @@ fn chain_mass(
     world_from_link: &[Pose3],
     axes: &[WorldAxis],
     moved: &[Vec<usize>],
-) -> [f64; MAX_CHAIN * MAX_CHAIN] {
+) -> ChainMatrix {
     let n = axes.len();
     let mut mass = [0.0f64; MAX_CHAIN * MAX_CHAIN];
     for b in 0..n {
