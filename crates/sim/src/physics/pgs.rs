@@ -220,7 +220,7 @@ impl RowSpace {
         let k = k & (ROW_SLOTS - 1);
         let u = self.wanted[k];
         // Plain comparisons rather than clamp, whose NaN and bound checks
-        // lengthen the chain of dependent updates (Row::new asserts
+        // lengthen the chain of dependent updates (RowSpace::push asserts
         // lower <= upper in debug builds; every row the reference builds
         // has them in order).
         let next = if u < self.lower[k] { self.lower[k] } else { u };
