@@ -220,27 +220,81 @@ pub fn run(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
     if ctx.json {
         println!("{}", serde_json::Value::Array(rows));
     } else {
-        println!(
-            "{:<28} {:<34} {:<46} {:>9} {:>8} {:>8} {:>7}",
-            "figure", "object", "renderer", "median ms", "render", "tensor", "target"
-        );
-        let ms = |r: &serde_json::Value, k: &str| {
-            r[k].as_f64()
-                .map(|t| format!("{t:.2}"))
-                .unwrap_or_else(|| "-".into())
-        };
-        for r in &rows {
-            println!(
-                "{:<28} {:<34} {:<46} {:>9.3} {:>8} {:>8} {:>7}",
-                r["figure"].as_str().unwrap_or(""),
-                r["object"].as_str().unwrap_or(""),
-                r["renderer"].as_str().unwrap_or("-"),
-                r["median_ms"].as_f64().unwrap_or(f64::NAN),
-                ms(r, "render_ms"),
-                ms(r, "tensor_ms"),
-                ms(r, "target_ms"),
-            );
-        }
+        print!("{}", table(&rows));
     }
     Ok(())
+}
+
+/// The figures as a table for the terminal.
+fn table(rows: &[serde_json::Value]) -> String {
+    // Columns as wide as their longest entry: figure names and
+    // renderer strings vary with the profile, the device and the driver.
+    let text = |r: &serde_json::Value, k: &str| r[k].as_str().unwrap_or("-").to_string();
+    let width = |k: &str, header: &str| {
+        rows.iter()
+            .map(|r| text(r, k).chars().count())
+            .fold(header.len(), usize::max)
+    };
+    let (wf, wo, wr) = (
+        width("figure", "figure"),
+        width("object", "object"),
+        width("renderer", "renderer"),
+    );
+    let mut out = format!(
+        "{:<wf$} {:<wo$} {:<wr$} {:>9} {:>8} {:>8} {:>7}\n",
+        "figure", "object", "renderer", "median ms", "render", "tensor", "target"
+    );
+    let ms = |r: &serde_json::Value, k: &str| {
+        r[k].as_f64()
+            .map(|t| format!("{t:.2}"))
+            .unwrap_or_else(|| "-".into())
+    };
+    for r in rows {
+        out += &format!(
+            "{:<wf$} {:<wo$} {:<wr$} {:>9.3} {:>8} {:>8} {:>7}\n",
+            text(r, "figure"),
+            text(r, "object"),
+            text(r, "renderer"),
+            r["median_ms"].as_f64().unwrap_or(f64::NAN),
+            ms(r, "render_ms"),
+            ms(r, "tensor_ms"),
+            ms(r, "target_ms"),
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::indexing_slicing, reason = "tests fail by panicking")]
+    use super::*;
+
+    #[test]
+    fn the_table_keeps_its_columns_whatever_the_lengths() {
+        let rows = [
+            serde_json::json!({"figure": "physics per 0.18 m action (reference)", "object": "StorageFurniture", "renderer": "PGS (Bullet's schedule)", "median_ms": 0.141, "target_ms": 1.0}),
+            serde_json::json!({"figure": "observation 120x160", "object": "largest (Toy, 240 triangles)", "renderer": "wgpu/Vulkan llvmpipe (LLVM 15.0.6, 256 bits) and more", "median_ms": 1.947, "render_ms": 1.52, "tensor_ms": 0.44, "target_ms": 3.0}),
+        ];
+        let t = table(&rows);
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(lines.len(), 3, "{t}");
+        // Every column starts where its header does.
+        for header in ["object", "renderer", "median ms"] {
+            let at = lines[0].find(header).expect("header");
+            for line in &lines[1..] {
+                assert_eq!(
+                    line.as_bytes()[at - 1],
+                    b' ',
+                    "column {header} shifted:\n{t}"
+                );
+            }
+        }
+        let end = lines[0].find("median ms").expect("header") + "median ms".len();
+        assert!(lines[1][..end].ends_with("0.141"), "{t}");
+        assert!(lines[2][..end].ends_with("1.947"), "{t}");
+        assert!(
+            lines[1].ends_with("1.00") && lines[2].ends_with("3.00"),
+            "{t}"
+        );
+    }
 }

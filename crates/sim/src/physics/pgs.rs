@@ -355,7 +355,16 @@ mod tests {
     /// `solve` on these rows, from their impulses (a warm start when they
     /// are not zero), writing the impulses back.
     fn solve_rows(rows: &mut [Row], x: &mut [f64; MAX_DOFS], sweeps: usize, space: &mut RowSpace) {
-        space.begin(MAX_DOFS);
+        // The velocities the rows touch: the space's masks see no spare
+        // zero entries past them.
+        let dofs = rows
+            .iter()
+            .flat_map(|r| r.jacobian.iter().zip(&r.response).enumerate())
+            .filter(|(_, (j, r))| **j != 0.0 || **r != 0.0)
+            .map(|(d, _)| d + 1)
+            .max()
+            .unwrap_or(0);
+        space.begin(dofs);
         for r in rows.iter() {
             assert!(space.push(&r.jacobian, &r.response, r.target, r.lower, r.upper));
             space.impulse[space.rows - 1] = r.impulse;
@@ -538,19 +547,47 @@ mod tests {
         // smaller one.
         for seed in 0..300u64 {
             let n = 1 + seed as usize % 5;
-            let count = 2 + seed as usize % (MAX_ROWS - 1);
+            // Up to 21 rows: all a chain of five joints has (6 + 3 * 5).
+            let count = 2 + seed as usize % 20;
             let (rows, x0) = chain_rows(seed, n, count);
             assert_close(&rows, x0, &mut scratch, &format!("chain {seed}"));
         }
         // A space holds MAX_ROWS rows (all a chain of MAX_DOFS - 3 joints
         // can have): one more is refused, not written past the end.
-        let (rows, _) = chain_rows(7, 5, MAX_ROWS + 1);
+        let (rows, _) = chain_rows(7, 5, 22);
         scratch.begin(MAX_DOFS);
         let kept = rows
             .iter()
             .filter(|r| scratch.push(&r.jacobian, &r.response, r.target, r.lower, r.upper))
             .count();
-        assert_eq!(kept, MAX_ROWS);
+        assert_eq!(kept, 21);
+    }
+
+    #[test]
+    fn a_row_on_every_velocity_couples_to_the_rows_it_shares_them_with() {
+        // Two velocities: a row on both (no zero entry) and a row on each.
+        // The couplings skip only pairs that share no velocity.
+        let both = {
+            let mut j = [0.0; MAX_DOFS];
+            j[0] = 1.0;
+            j[1] = -0.5;
+            j
+        };
+        let mut response = both;
+        response[0] /= 2.0;
+        response[1] /= 3.0;
+        let rows = vec![
+            Row::new(&unit(0, 1.0), &unit(0, 0.5), 0.7, -10.0, 10.0).unwrap(),
+            Row::new(&both, &response, -0.4, -10.0, 10.0).unwrap(),
+            Row::new(&unit(1, 1.0), &unit(1, 1.0 / 3.0), 0.2, -0.05, 0.05).unwrap(),
+        ];
+        let mut scratch = RowSpace::default();
+        assert_close(
+            &rows,
+            [0.1, -0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            &mut scratch,
+            "dense",
+        );
     }
 
     #[test]
