@@ -350,10 +350,9 @@ impl ReferenceArticulation {
         // Fixed-size: this runs at every 1/240 s step, hundreds of times per action.
         let axes = chain_axes(&self.model, &self.world_from_link, &s.chain);
         let linear = |a: usize, at: Vec3| linear(&axes[a], at);
-        let inverse_mass = match s.fixed_inverse_mass {
-            Some(m) => Some(m),
-            None => chain_inverse_mass(&self.model, &self.world_from_link, &s.chain, &s.moved),
-        };
+        let inverse_mass = s
+            .fixed_inverse_mass
+            .or_else(|| chain_inverse_mass(&self.model, &self.world_from_link, &s.chain, &s.moved));
         let Some(inv_mass) = inverse_mass else {
             return;
         };
