@@ -73,11 +73,6 @@ pub(crate) struct RowSpace {
     /// couple only through a velocity both touch.
     jacobian_mask: [u8; ROW_SLOTS],
     response_mask: [u8; ROW_SLOTS],
-    /// For a row on one velocity (`push_unit`): that velocity and the
-    /// Jacobian's sign there, so that its products need no dot product.
-    /// Sign 0 for the other rows.
-    unit_velocity: [usize; ROW_SLOTS],
-    unit_sign: [f64; ROW_SLOTS],
     target: [f64; ROW_SLOTS],
     effective_mass: [f64; ROW_SLOTS],
     /// Its inverse: the row's own speed change per unit impulse.
@@ -87,7 +82,6 @@ pub(crate) struct RowSpace {
     /// Each row's unclamped impulse.
     wanted: [f64; ROW_SLOTS],
     impulse: [f64; ROW_SLOTS],
-
     /// Per row `k`, the rows `i` it couples to, with the change of
     /// `wanted[i]` per unit change of `impulse[k]`. Most pairs of rows share
     /// no velocity and are left out; only the first `coupled_count[k]`
@@ -106,8 +100,6 @@ impl Default for RowSpace {
             response: [[0.0; MAX_DOFS]; ROW_SLOTS],
             jacobian_mask: [0; ROW_SLOTS],
             response_mask: [0; ROW_SLOTS],
-            unit_velocity: [0; ROW_SLOTS],
-            unit_sign: [0.0; ROW_SLOTS],
             target: [0.0; ROW_SLOTS],
             effective_mass: [0.0; ROW_SLOTS],
             compliance: [0.0; ROW_SLOTS],
@@ -162,55 +154,6 @@ impl RowSpace {
         self.response[k] = *response;
         self.jacobian_mask[k] = mask(jacobian, self.dofs);
         self.response_mask[k] = mask(response, self.dofs);
-        self.unit_sign[k] = 0.0;
-        self.keep(k, d, target, lower, upper);
-        true
-    }
-
-    /// Adds a row on velocity `velocity` alone (a motor, a limit, a brake):
-    /// Jacobian `sign` there, response `sign` times `column`, the inverse
-    /// mass's column for that velocity. The same row as `push` would make,
-    /// bit for bit: the dot products it skips have one term that is not
-    /// zero.
-    pub(crate) fn push_unit(
-        &mut self,
-        velocity: usize,
-        sign: f64,
-        column: &[f64; MAX_DOFS],
-        target: f64,
-        lower: f64,
-        upper: f64,
-    ) -> bool {
-        debug_assert!(lower <= upper, "row bounds out of order: {lower} > {upper}");
-        debug_assert!(
-            sign == 1.0 || sign == -1.0,
-            "a unit row's sign is ±1, not {sign}"
-        );
-        let Some(&d) = column.get(velocity).filter(|_| velocity < self.dofs) else {
-            return false;
-        };
-        if d <= 1e-12 || self.rows >= MAX_ROWS {
-            return false;
-        }
-        let k = self.rows;
-        let mut jacobian = [0.0; MAX_DOFS];
-        jacobian[velocity] = sign;
-        let mut response = [0.0; MAX_DOFS];
-        for (r, c) in response.iter_mut().zip(column).take(self.dofs) {
-            *r = c * sign;
-        }
-        self.jacobian[k] = jacobian;
-        self.jacobian_mask[k] = 1 << velocity;
-        self.response_mask[k] = mask(&response, self.dofs);
-        self.response[k] = response;
-        self.unit_velocity[k] = velocity;
-        self.unit_sign[k] = sign;
-        self.keep(k, d, target, lower, upper);
-        true
-    }
-
-    #[inline(always)]
-    fn keep(&mut self, k: usize, d: f64, target: f64, lower: f64, upper: f64) {
         self.target[k] = target;
         self.effective_mass[k] = 1.0 / d;
         self.compliance[k] = d;
@@ -218,24 +161,14 @@ impl RowSpace {
         self.upper[k] = upper;
         self.impulse[k] = 0.0;
         self.rows += 1;
-    }
-
-    /// `jacobian[i] · v`.
-    #[inline(always)]
-    fn along(&self, i: usize, v: &[f64; MAX_DOFS]) -> f64 {
-        let sign = self.unit_sign[i];
-        if sign != 0.0 {
-            sign * v[self.unit_velocity[i] & (MAX_DOFS - 1)]
-        } else {
-            dot(&self.jacobian[i], v, self.dofs)
-        }
+        true
     }
 
     fn load(&mut self, x: &[f64; MAX_DOFS]) {
-        let rows = self.rows;
+        let (rows, dofs) = (self.rows, self.dofs);
         for i in 0..rows {
-            self.wanted[i] =
-                self.impulse[i] + (self.target[i] - self.along(i, x)) * self.effective_mass[i];
+            self.wanted[i] = self.impulse[i]
+                + (self.target[i] - dot(&self.jacobian[i], x, dofs)) * self.effective_mass[i];
         }
         for k in 0..rows {
             let mut count = 0;
@@ -248,7 +181,8 @@ impl RowSpace {
                     if shared == 0 {
                         continue;
                     }
-                    let c = -self.along(i, &self.response[k]) * self.effective_mass[i];
+                    let c =
+                        -dot(&self.jacobian[i], &self.response[k], dofs) * self.effective_mass[i];
                     if c != 0.0 {
                         self.coupled[k][count] = (i, c);
                         count += 1;
@@ -627,57 +561,6 @@ mod tests {
             .filter(|r| scratch.push(&r.jacobian, &r.response, r.target, r.lower, r.upper))
             .count();
         assert_eq!(kept, 21);
-    }
-
-    #[test]
-    fn unit_rows_pushed_as_columns_solve_as_the_full_rows_bit_for_bit() {
-        let mut unit_rows = 0;
-        for seed in 0..200 {
-            let (rows, x0) = chain_rows(seed, 1 + seed as usize % 4, 6 + seed as usize % 12);
-            let dofs = 1 + seed as usize % 4 + 3;
-            let (mut full, mut by_column) = (RowSpace::default(), RowSpace::default());
-            full.begin(dofs);
-            by_column.begin(dofs);
-            for r in &rows {
-                assert!(full.push(&r.jacobian, &r.response, r.target, r.lower, r.upper));
-                let one = r.jacobian.iter().position(|&j| j != 0.0);
-                match one {
-                    Some(v)
-                        if r.jacobian.iter().filter(|&&j| j != 0.0).count() == 1
-                            && r.jacobian[v].abs() == 1.0 =>
-                    {
-                        let sign = r.jacobian[v];
-                        let column = r.response.map(|e| e * sign);
-                        assert!(by_column.push_unit(v, sign, &column, r.target, r.lower, r.upper));
-                        unit_rows += 1;
-                    }
-                    _ => assert!(by_column.push(
-                        &r.jacobian,
-                        &r.response,
-                        r.target,
-                        r.lower,
-                        r.upper
-                    )),
-                }
-            }
-            let (mut a, mut b) = (x0, x0);
-            solve(&mut a, 50, &mut full);
-            solve(&mut b, 50, &mut by_column);
-            assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "seed {seed}");
-            assert_eq!(
-                full.impulse.map(f64::to_bits),
-                by_column.impulse.map(f64::to_bits)
-            );
-        }
-        assert!(unit_rows > 500, "only {unit_rows} unit rows tried");
-        // A velocity outside the space, or one with no mass, makes no row.
-        let mut space = RowSpace::default();
-        space.begin(4);
-        assert!(!space.push_unit(4, 1.0, &unit(4, 1.0), 0.0, -1.0, 1.0));
-        assert!(!space.push_unit(1, -1.0, &unit(2, 1.0), 0.0, -1.0, 1.0));
-        assert!(space.push_unit(1, -1.0, &unit(1, 0.5), 0.0, -1.0, 1.0));
-        assert_eq!(space.rows, 1);
-        assert_eq!(space.response[0], unit(1, -0.5));
     }
 
     #[test]

@@ -378,18 +378,23 @@ impl ReferenceArticulation {
             }
             response
         };
-        // A row on one velocity (a motor, a limit, a brake) moves the
-        // velocities along a column of the inverse mass.
-        let column = |i: usize| {
-            let mut column = [0.0; MAX_DOFS];
+        // A row on one velocity (a motor, a limit, a brake): its response is
+        // a column of the inverse mass.
+        let unit_response = |i: usize, sign: f64| {
+            let mut response = [0.0; MAX_DOFS];
             if i < n {
-                for (a, c) in column.iter_mut().enumerate().take(n) {
-                    *c = inv_mass[a * n + i];
+                for (a, r) in response.iter_mut().enumerate().take(n) {
+                    *r = inv_mass[a * n + i] * sign;
                 }
             } else {
-                column[i] = 1.0 / mount_mass;
+                response[i] = sign / mount_mass;
             }
-            column
+            response
+        };
+        let unit = |i: usize, sign: f64| {
+            let mut j = [0.0; MAX_DOFS];
+            j[i] = sign;
+            j
         };
         let mut x = [0.0f64; MAX_DOFS];
         for (a, &j) in s.chain.iter().enumerate() {
@@ -421,10 +426,9 @@ impl ReferenceArticulation {
         }
         // The mount's three velocity motors.
         for i in 0..3 {
-            space.push_unit(
-                n + i,
-                1.0,
-                &column(n + i),
+            space.push(
+                &unit(n + i, 1.0),
+                &unit_response(n + i, 1.0),
                 desired[i] as f64,
                 -motor_bound,
                 motor_bound,
@@ -440,26 +444,34 @@ impl ReferenceArticulation {
                 continue;
             }
             let q = self.q[j] as f64;
-            let column = column(a);
             for (sign, gap) in [(1.0, q - jm.lower as f64), (-1.0, jm.upper as f64 - q)] {
                 let target = if gap > 0.0 {
                     sign * x[a] - gap / hk
                 } else {
                     -gap * erp / hk
                 };
-                space.push_unit(a, sign, &column, target, 0.0, f64::INFINITY);
+                space.push(
+                    &unit(a, sign),
+                    &unit_response(a, sign),
+                    target,
+                    0.0,
+                    f64::INFINITY,
+                );
             }
         }
         // The default velocity motor of each chain joint: a dry brake.
         let brake = (self.params.brake_impulse * k as f32) as f64;
         for a in 0..n {
-            space.push_unit(a, 1.0, &column(a), 0.0, -brake, brake);
+            space.push(&unit(a, 1.0), &unit_response(a, 1.0), 0.0, -brake, brake);
         }
 
         solve(&mut x, self.params.solver_iterations, &mut self.row_space);
 
         let max_speed = self.params.max_joint_speed as f64;
-        for (a, &j) in s.chain.iter().enumerate() {
+        let mut chain_buf = [0usize; MAX_CHAIN];
+        chain_buf[..n].copy_from_slice(&s.chain);
+        let chain = &chain_buf[..n];
+        for (a, &j) in chain.iter().enumerate() {
             let v = x[a].clamp(-max_speed, max_speed) as f32;
             self.qd[j] = v;
             self.q[j] += v * h;
