@@ -45,14 +45,17 @@ demo: build
 	$(UMPNET) bench --frames 20 --actions 100
 	@echo "pictures, tables and plots in out/"
 
-# The issue-7 comparison: the shipped model, the paper's baselines (models/baselines),
-# random and oracle on the same scenes, both tasks, both splits.
+# The baselines comparison: the shipped model, umpnet and the paper's baselines
+# trained with one budget (models/baselines), random and oracle on the same
+# scenes, both tasks. The test categories by default; SPLIT=train for the
+# held-out instances of the training categories, SPLIT=all for both.
 B := models/baselines
-EXPLORE_POLICIES := umpnet,single-step=$(B)/single-step,aot-only=$(B)/aot-only,signed-dist=$(B)/signed-dist,where2act=$(B)/where2act,where2act-normal90=$(B)/where2act-normal90,random,oracle
+EXPLORE_POLICIES := umpnet,umpnet-300=$(B)/umpnet-300,single-step=$(B)/single-step,aot-only=$(B)/aot-only,signed-dist=$(B)/signed-dist,where2act=$(B)/where2act,where2act-normal90=$(B)/where2act-normal90,random,oracle
 EPISODES ?= 50
+SPLIT ?= test
 eval-baselines: build
-	$(UMPNET) eval --task exploration --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES) --out out/baselines-exploration --force
-	$(UMPNET) eval --task goal --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --out out/baselines-goal --force
+	$(UMPNET) eval --task exploration --split $(SPLIT) --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES) --out out/baselines-exploration-$(SPLIT) --force
+	$(UMPNET) eval --task goal --split $(SPLIT) --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --out out/baselines-goal-$(SPLIT) --force
 
 # umpnet and every baseline with one recipe and one budget (cpu-small, 300 epochs,
 # dense labels, reference physics, seed 0): an estimated 45 minutes per variant here,
