@@ -142,3 +142,31 @@ def test_the_contradictory_policy_turns_at_the_boundary_or_half_way_and_stays_ba
     assert collect.contradictory_heading(h, 3, 8, np.zeros(4, bool)).tolist() == [-1, -1, -1, -1]
     # Back stays back, even at a boundary.
     assert collect.contradictory_heading(np.array([-1]), 5, 8, np.array([True])).tolist() == [-1]
+
+
+def test_signed_distance_splits_moves_where_its_labels_do(tmp_path):
+    """A SignedDist decoder predicting 0.05 x: under the reference's labels
+    (moves from 0.05 m, no move labelled 0) that is a move along ±x, and the
+    package says so; δ's 0.15 would call every candidate still."""
+    torch.manual_seed(0)
+    cfg = fixture.make_config("smoke", variant="signed-dist")
+    model = fixture.UMPNet(cfg)
+    with torch.no_grad():
+        for p in model.decoder.parameters():
+            p.zero_()
+        model.decoder.bilinear_dist.bias.copy_(torch.tensor([0.05, 0.0, 0.0]))
+    pkg = tmp_path / "signed"
+    export_model(model, cfg, pkg, {"command": "test_runtime_semantics", "trained": False})
+    meta = json.loads((pkg / "model.json").read_text())
+    assert cfg.labels == "reference" and meta["signed_distance_threshold"] == 0.025
+    for r in choose(pkg, "explore"):
+        assert r["direction"][0] > 0.5 and r["aot"][r["candidates"].index(r["direction"])] == 1
+    for r in choose(pkg, "goal"):
+        assert r["direction"][0] < -0.5 and r["aot"][r["candidates"].index(r["direction"])] == -1
+    meta["signed_distance_threshold"] = 0.15
+    (pkg / "model.json").write_text(json.dumps(meta))
+    assert all(set(r["aot"]) == {0} for r in choose(pkg, "goal"))
+    meta["signed_distance_threshold"] = -1.0
+    (pkg / "model.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="signed_distance_threshold"):
+        umpnet.Policy(str(pkg))

@@ -101,6 +101,14 @@ def _export(module, args, path, inputs, outputs, dynamic):
     )
 
 
+def signed_distance_threshold(labels: str) -> float:
+    """Where the runtime splits a SignedDist prediction into "moved" and
+    "no effective change": halfway between the label of no move (0) and the
+    smallest move the training labels count (0.05 m with the reference's
+    thresholds, δ = 0.15 with the paper text's)."""
+    return {"reference": 0.05, "delta": 0.15}[labels] / 2
+
+
 def export_model(
     model: UMPNet,
     cfg: Config,
@@ -186,6 +194,7 @@ def export_model(
         "uses_reference": uses_reference(cfg.variant),
         "direction_filter": direction_filter,
         "aot_classes": [-1, 0, 1],
+        "signed_distance_threshold": signed_distance_threshold(cfg.labels),
         "files": {
             "position": "position.onnx",
             "direction_encoder": "direction_encoder.onnx",

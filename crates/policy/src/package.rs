@@ -45,6 +45,13 @@ pub struct ModelMeta {
     /// that canonical order, so packages of any class order mean the same.
     #[serde(default = "default_aot_classes")]
     pub aot_classes: Vec<i64>,
+    /// SignedDist packages: a predicted |signed distance| at or below this
+    /// means "no effective change" (AoT 0). The exporter writes half the
+    /// smallest move its training labels count (those labels put 0 for no
+    /// move and at least that move otherwise); packages without the field
+    /// keep δ = 0.15.
+    #[serde(default = "default_signed_distance_threshold")]
+    pub signed_distance_threshold: f32,
     #[serde(default)]
     pub provenance: serde_json::Value,
     #[serde(default)]
@@ -53,6 +60,10 @@ pub struct ModelMeta {
 
 fn default_aot_classes() -> Vec<i64> {
     vec![-1, 0, 1]
+}
+
+fn default_signed_distance_threshold() -> f32 {
+    0.15
 }
 
 fn default_variant() -> String {
@@ -234,6 +245,15 @@ impl ModelPackage {
                 format!(
                     "`aot_classes` is {:?}, expected an order of -1, 0 and 1 (e.g. [-1, 0, 1])",
                     meta.aot_classes
+                ),
+            ));
+        }
+        if !(meta.signed_distance_threshold.is_finite() && meta.signed_distance_threshold >= 0.0) {
+            return Err(pkg_err(
+                &meta_path,
+                format!(
+                    "`signed_distance_threshold` is {}, expected a finite number >= 0",
+                    meta.signed_distance_threshold
                 ),
             ));
         }
@@ -559,10 +579,11 @@ impl ModelPackage {
                 }
                 Branches::SignedDist => {
                     let sd = get1("signed_distance")?;
-                    // The sign is the arrow of time; |sd| below 0.15 (delta) means no effective change.
+                    // The sign is the arrow of time; a small |sd| means no effective change.
+                    let still = self.meta.signed_distance_threshold;
                     let mut p = Array2::<f32>::zeros((sd.len(), 3));
                     for (i, v) in sd.iter().enumerate() {
-                        let k = if v.abs() <= 0.15 { 1 } else if *v > 0.0 { 2 } else { 0 };
+                        let k = if v.abs() <= still { 1 } else if *v > 0.0 { 2 } else { 0 };
                         if let Some(x) = p.get_mut((i, k)) {
                             *x = 1.0;
                         }
