@@ -3,6 +3,7 @@
 import json
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -240,20 +241,41 @@ def test_the_shipped_model_beats_random_on_fixed_goal_scenes():
     assert mean[("umpnet", "normalized_distance")] <= mean[("random", "normalized_distance")] - 0.3, mean
 
 
-BASELINES = ["single-step", "aot-only", "signed-dist", "where2act", "where2act-normal90", "inverse"]
+BASELINES = ["umpnet-300", "single-step", "aot-only", "signed-dist", "where2act", "where2act-normal90", "inverse"]
 
 
 def test_shipped_baselines_load_and_run_the_benchmark(tmp_path):
-    specs = ",".join(f"{b}={ROOT / 'models' / 'baselines' / b}" for b in BASELINES)
-    run("eval", "--task", "goal", "--categories", "Door,Laptop", "--episodes-per-category", "2",
-        "--policies", f"umpnet,{specs}", "--out", str(tmp_path))  # fmt: skip
-    rows = [line.split(",") for line in (tmp_path / "results.csv").read_text().splitlines()[1:]]
+    """`make eval-baselines` in small: every package loads and runs both tasks,
+    and scripts/baselines_table.py turns the results into the README's table."""
+    specs = {b: f"{b}={ROOT / 'models' / 'baselines' / b}" for b in BASELINES}
+    out = {task: tmp_path / f"baselines-{task}-test" for task in ("goal", "exploration")}
+    for task, folder in out.items():
+        policies = ",".join(["umpnet"] + [s for b, s in specs.items() if task == "goal" or b != "inverse"])
+        run("eval", "--task", task, "--categories", "Door,Box", "--episodes-per-category", "2",
+            "--policies", policies, "--out", str(folder))  # fmt: skip
+    rows = [line.split(",") for line in (out["goal"] / "results.csv").read_text().splitlines()[1:]]
     for b in BASELINES:
-        counts = [int(r[-1]) for r in rows if r[0] == b]
+        counts = [int(r[-1]) for r in rows if r[0] == b and r[1] != "average"]
         assert counts and all(n == 2 for n in counts), f"{b}: episodes failed or missing"
     for b in BASELINES:
         meta = json.loads((ROOT / "models" / "baselines" / b / "model.json").read_text())
         assert meta["provenance"]["epochs"] == 300 and meta["provenance"]["seed"] == 0
+    table = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "baselines_table.py"), "--out", str(tmp_path), "--json"],
+        check=True, capture_output=True, text=True,
+    )  # fmt: skip
+    t = json.loads(table.stdout)
+    averages = {(r[0], r[3]): float(r[4]) for r in rows if r[1] == "average"}  # one split: the test categories
+    for b in ["umpnet", *BASELINES]:
+        mean, half = t["table"][b]["goal success"]
+        assert abs(mean - averages[(b, "success_rate")]) < 1e-6 and half >= 0
+    assert "novel-state ratio" not in t["table"]["inverse"]
+    pairs = {(c["umpnet"], c["baseline"], c["metric"]) for c in t["comparisons"]}
+    assert ("umpnet-300", "where2act", "novel-state ratio") in pairs
+    assert ("umpnet", "inverse", "goal success") in pairs
+    assert ("umpnet", "inverse", "novel-state ratio") not in pairs
+    for c in t["comparisons"]:
+        assert c["beats"] == (c["advantage"] - c["ci95"] > 0)
     # The Inverse model has no exploration behaviour: a clear usage error, not a failed episode.
     p = run("eval", "--task", "exploration", "--categories", "Door", "--episodes-per-category", "1",
             "--policies", f"inverse={ROOT / 'models' / 'baselines' / 'inverse'}", check=False)  # fmt: skip
