@@ -103,7 +103,7 @@ def main() -> None:
     if a.json:
         print(json.dumps({"split": a.split, "table": table, "comparisons": comparisons}, indent=1))
         return
-    order = [p for p in results["goal"]["summary"]["policies"]]
+    order = list(results["goal"]["summary"]["policies"])
     order += [p for p in results["exploration"]["summary"]["policies"] if p not in order]
     print(f"| policy ({a.split} categories) | " + " | ".join(METRICS) + " |")
     print("|---|" + "---|" * len(METRICS))
