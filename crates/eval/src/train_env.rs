@@ -95,6 +95,28 @@ pub enum ScriptedAction {
     Stop,
 }
 
+/// Draws the new state of every environment whose last step was deferred
+/// (`step_*_deferred`), all in one batch: one wgpu submission for the lot, or
+/// the CPU renderer in parallel across environments. The frames are the
+/// ones the immediate steps draw, bit for bit.
+pub fn render_pending(envs: &mut [TrainEnv]) -> Result<()> {
+    let mut requests = Vec::new();
+    let mut which = Vec::new();
+    for (i, e) in envs.iter_mut().enumerate() {
+        if let (None, Some(env)) = (&e.frame, e.env.as_mut()) {
+            requests.push(env.render_request());
+            which.push(i);
+        }
+    }
+    let frames = umpnet_sim::render::render_batch(requests)?;
+    for (i, frame) in which.into_iter().zip(frames) {
+        if let Some(e) = envs.get_mut(i) {
+            e.frame = Some(frame);
+        }
+    }
+    Ok(())
+}
+
 pub struct TrainEnv {
     cfg: EnvConfig,
     rng: ChaCha8Rng,
@@ -203,9 +225,12 @@ impl TrainEnv {
     }
 
     fn current_frame(&self) -> Result<&Frame> {
-        self.frame
-            .as_ref()
-            .ok_or_else(|| EvalError::Episode("reset() first".into()))
+        self.frame.as_ref().ok_or_else(|| {
+            EvalError::Episode(match self.env {
+                None => "reset() first".into(),
+                Some(_) => "the last step was deferred: render_pending() draws it".into(),
+            })
+        })
     }
 
     /// The current observation written into the caller's buffers: `image`
@@ -332,9 +357,22 @@ impl TrainEnv {
 
     /// [`TrainEnv::step_position`] without building the observation.
     pub fn step_position_in_place(&mut self, row: u32, col: u32) -> Result<PositionInfo> {
+        let info = self.step_position_deferred(row, col)?;
+        self.render_in_place()?;
+        Ok(info)
+    }
+
+    /// [`TrainEnv::step_position_in_place`] without drawing the new state:
+    /// [`render_pending`] draws it, for many environments at once.
+    pub fn step_position_deferred(&mut self, row: u32, col: u32) -> Result<PositionInfo> {
         let (env, frame) = match (self.env.as_mut(), self.frame.as_ref()) {
             (Some(e), Some(f)) => (e, f),
-            _ => return Err(EvalError::Episode("step_position before reset()".into())),
+            (None, _) => return Err(EvalError::Episode("step_position before reset()".into())),
+            (Some(_), None) => {
+                return Err(EvalError::Episode(
+                    "step_position after a deferred step: render_pending() draws it first".into(),
+                ));
+            }
         };
         let pick = env.step_position(frame, row, col)?;
         let valid = env.pick_is_valid(&pick);
@@ -361,7 +399,7 @@ impl TrainEnv {
             }
             Pick::NoMovableLink => PositionInfo::default(),
         };
-        self.frame = Some(env.render()?);
+        self.frame = None;
         Ok(info)
     }
 
@@ -386,6 +424,14 @@ impl TrainEnv {
 
     /// [`TrainEnv::step_direction`] without building the observation.
     pub fn step_direction_in_place(&mut self, direction: [f32; 3]) -> Result<StepLabels> {
+        let labels = self.step_direction_deferred(direction)?;
+        self.render_in_place()?;
+        Ok(labels)
+    }
+
+    /// [`TrainEnv::step_direction_in_place`] without drawing the new state:
+    /// [`render_pending`] draws it, for many environments at once.
+    pub fn step_direction_deferred(&mut self, direction: [f32; 3]) -> Result<StepLabels> {
         let env = self
             .env
             .as_mut()
@@ -395,7 +441,7 @@ impl TrainEnv {
             direction: Vec3::from(direction).normalize().to_array(),
             labels: labels.clone(),
         });
-        self.frame = Some(env.render()?);
+        self.frame = None;
         Ok(labels)
     }
 

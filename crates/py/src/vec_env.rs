@@ -16,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 use std::path::PathBuf;
-use umpnet_eval::train_env::TrainEnv;
+use umpnet_eval::train_env::{TrainEnv, render_pending};
 use umpnet_sim::env::StepLabels;
 use umpnet_sim::scene::Scene;
 
@@ -25,17 +25,24 @@ use umpnet_sim::scene::Scene;
 ///
 /// Like `Env`, observations are buffers rewritten in place by every step
 /// unless `copy=True`.
+///
+/// With `batch_render=True` (the default) a step runs every environment's
+/// physics in parallel, then draws all their frames in one batch (one wgpu
+/// submission, or the CPU renderer in parallel across environments). False
+/// draws each environment as its step ends; the observations are the same,
+/// bit for bit.
 #[pyclass(module = "umpnet")]
 pub(crate) struct VecEnv {
     envs: Vec<TrainEnv>,
     buffers: buffers::ObsBuffers,
     copy: bool,
+    batch_render: bool,
 }
 
 #[pymethods]
 impl VecEnv {
     #[new]
-    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", copy=false))]
+    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", copy=false, batch_render=true))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -50,6 +57,7 @@ impl VecEnv {
         dataset_seed: u64,
         physics: &str,
         copy: bool,
+        batch_render: bool,
     ) -> PyResult<Self> {
         if !(1..=MAX_ENVS).contains(&n) {
             return Err(PyValueError::new_err(format!(
@@ -75,6 +83,7 @@ impl VecEnv {
             envs,
             buffers: buffers::ObsBuffers::new(py, Some(n), h, w)?,
             copy,
+            batch_render,
         })
     }
 
@@ -152,13 +161,23 @@ impl VecEnv {
                 "pixels must be non-negative and inside the image",
             ));
         };
-        let envs = &mut self.envs;
+        let (envs, batch) = (&mut self.envs, self.batch_render);
         let out = py
             .detach(|| {
-                envs.par_iter_mut()
+                let out = envs
+                    .par_iter_mut()
                     .enumerate()
-                    .map(|(i, e)| e.step_position_in_place(p[2 * i], p[2 * i + 1]))
-                    .collect::<Result<Vec<_>, _>>()
+                    .map(|(i, e)| {
+                        let (row, col) = (p[2 * i], p[2 * i + 1]);
+                        if batch {
+                            e.step_position_deferred(row, col)
+                        } else {
+                            e.step_position_in_place(row, col)
+                        }
+                    })
+                    .collect::<Result<Vec<_>, _>>()?;
+                render_pending(envs)?;
+                Ok::<_, umpnet_eval::EvalError>(out)
             })
             .map_err(eval_err)?;
         let infos = out;
@@ -217,19 +236,20 @@ impl VecEnv {
                     .map_err(|e| PyValueError::new_err(format!("row {i}: {e}")))?;
             }
         }
-        let envs = &mut self.envs;
+        let (envs, batch) = (&mut self.envs, self.batch_render);
         let out = py
             .detach(|| {
-                envs.par_iter_mut()
+                let out = envs
+                    .par_iter_mut()
                     .zip(&dirs)
-                    .map(|(e, d)| {
-                        if e.grasped_joint().is_some() {
-                            e.step_direction_in_place(*d).map(Some)
-                        } else {
-                            Ok(None)
-                        }
+                    .map(|(e, d)| match e.grasped_joint() {
+                        None => Ok(None),
+                        Some(_) if batch => e.step_direction_deferred(*d).map(Some),
+                        Some(_) => e.step_direction_in_place(*d).map(Some),
                     })
-                    .collect::<Result<Vec<_>, _>>()
+                    .collect::<Result<Vec<_>, _>>()?;
+                render_pending(envs)?;
+                Ok::<_, umpnet_eval::EvalError>(out)
             })
             .map_err(eval_err)?;
         let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
@@ -363,13 +383,16 @@ impl VecEnv {
                 Mixed::Idle
             });
         }
-        let envs = &mut self.envs;
+        let (envs, batch) = (&mut self.envs, self.batch_render);
         let outcomes = py
             .detach(|| {
-                envs.par_iter_mut()
+                let out = envs
+                    .par_iter_mut()
                     .zip(&actions)
-                    .map(|(e, a)| mixed_step(e, *a))
-                    .collect::<Result<Vec<_>, _>>()
+                    .map(|(e, a)| mixed_step(e, *a, batch))
+                    .collect::<Result<Vec<_>, _>>()?;
+                render_pending(envs)?;
+                Ok::<_, umpnet_eval::EvalError>(out)
             })
             .map_err(eval_err)?;
         let reset: Vec<bool> = actions.iter().map(|a| matches!(a, Mixed::Reset)).collect();
@@ -441,7 +464,14 @@ enum Outcome {
     Move(StepLabels),
 }
 
-fn mixed_step(e: &mut TrainEnv, a: Mixed) -> Result<Outcome, umpnet_eval::EvalError> {
+/// One environment's part of `step_mixed`. With `batch`, grasps and moves
+/// leave their drawing to `render_pending`; a reset draws its own frames (it
+/// needs the goal image as well).
+fn mixed_step(
+    e: &mut TrainEnv,
+    a: Mixed,
+    batch: bool,
+) -> Result<Outcome, umpnet_eval::EvalError> {
     Ok(match a {
         Mixed::Idle => Outcome::Idle,
         Mixed::Reset => {
@@ -449,7 +479,11 @@ fn mixed_step(e: &mut TrainEnv, a: Mixed) -> Result<Outcome, umpnet_eval::EvalEr
             Outcome::Reset
         }
         Mixed::Grasp(r, c) => {
-            let info = e.step_position_in_place(r, c)?;
+            let info = if batch {
+                e.step_position_deferred(r, c)?
+            } else {
+                e.step_position_in_place(r, c)?
+            };
             let value = |joints: &[f32]| {
                 info.joint
                     .and_then(|j| joints.get(j).copied())
@@ -462,6 +496,7 @@ fn mixed_step(e: &mut TrainEnv, a: Mixed) -> Result<Outcome, umpnet_eval::EvalEr
                 .map_or(f32::NAN, |g| value(&g.joints));
             Outcome::Grasp { info, start, goal }
         }
+        Mixed::Move(d) if batch => Outcome::Move(e.step_direction_deferred(d)?),
         Mixed::Move(d) => Outcome::Move(e.step_direction_in_place(d)?),
     })
 }

@@ -5,7 +5,7 @@ use crate::camera::Camera;
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Pose3, Quat, Vec3};
 use crate::physics::{Articulation, PhysicsConfig};
-use crate::render::{Frame, RenderMesh, Renderer, Segment, gripper_mesh, plane_mesh};
+use crate::render::{Frame, RenderMesh, RenderRequest, Renderer, Segment, gripper_mesh, plane_mesh};
 use crate::scene::{Scene, Task};
 use crate::urdf::{JointKind, ObjectModel};
 use std::sync::Arc;
@@ -155,6 +155,18 @@ impl SimEnv {
     pub fn render(&mut self) -> Result<Frame> {
         let t = self.part_transforms();
         self.renderer.render(&self.camera, &t)
+    }
+
+    /// What [`SimEnv::render`] would draw, as a request for
+    /// [`crate::render::render_batch`], which renders many environments in
+    /// one submission.
+    pub fn render_request(&mut self) -> RenderRequest<'_> {
+        let part_transforms = self.part_transforms();
+        RenderRequest {
+            renderer: &mut *self.renderer,
+            camera: &self.camera,
+            part_transforms,
+        }
     }
 
     /// Renders the object in another joint state (e.g. the goal) without

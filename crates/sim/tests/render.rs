@@ -100,3 +100,70 @@ fn wgpu_matches_cpu_reference_on_every_category() {
         worst_seg * 100.0
     );
 }
+
+/// The batch path (one wgpu submission for many scenes, or the CPU renderer
+/// in parallel across scenes) draws what each renderer draws on its own, bit
+/// for bit, in the order asked, with wgpu and CPU renderers mixed in one batch.
+#[test]
+fn a_batch_renders_what_each_renderer_renders_alone() {
+    use umpnet_sim::render::{Frame, render_batch};
+    let gpu = gpu_available();
+    if !gpu {
+        assert!(
+            std::env::var_os("UMPNET_REQUIRE_WGPU").is_none()
+                && std::env::var("CI").as_deref() != Ok("true"),
+            "no wgpu adapter, under UMPNET_REQUIRE_WGPU or CI=true (install mesa-vulkan-drivers)"
+        );
+        eprintln!("no wgpu adapter: the batch is checked with the CPU renderer only");
+    }
+    let camera = Camera::reference(60, 80);
+    let kinds = [
+        RendererKind::Wgpu,
+        RendererKind::Cpu,
+        RendererKind::Wgpu,
+        RendererKind::Wgpu,
+        RendererKind::Cpu,
+    ];
+    let categories = [
+        Category::Refrigerator,
+        Category::Microwave,
+        Category::StorageFurniture,
+        Category::Door,
+        Category::Box,
+    ];
+    let mut envs: Vec<SimEnv> = kinds
+        .iter()
+        .zip(categories)
+        .enumerate()
+        .filter(|(_, (k, _))| gpu || **k == RendererKind::Cpu)
+        .map(|(i, (k, c))| {
+            SimEnv::new(
+                scene(c, i as u32),
+                camera.clone(),
+                create_renderer(*k).unwrap(),
+            )
+            .unwrap()
+        })
+        .collect();
+    let alone: Vec<Frame> = envs.iter_mut().map(|e| e.render().unwrap()).collect();
+    // Twice: the second batch reuses every renderer's targets and buffers.
+    for round in 0..2 {
+        let batch = render_batch(envs.iter_mut().map(|e| e.render_request()).collect()).unwrap();
+        assert_eq!(batch.len(), alone.len());
+        for (i, (a, b)) in alone.iter().zip(&batch).enumerate() {
+            let what = format!("round {round}, scene {i}");
+            assert_eq!(a.rgb, b.rgb, "{what}: colour");
+            let bits = |f: &Frame| f.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(a), bits(b), "{what}: depth");
+            assert_eq!(a.segmentation, b.segmentation, "{what}: segmentation");
+            assert_eq!(a.normal_in_world, b.normal_in_world, "{what}: normals");
+            assert!(
+                b.segmentation.iter().any(|&s| s >= SEG_OBJECT_BASE),
+                "{what}: the object is in view"
+            );
+        }
+        // Scenes differ, so a frame read from a neighbour's buffer would show.
+        assert_ne!(batch[0].segmentation, batch[1].segmentation);
+    }
+    assert!(render_batch(Vec::new()).unwrap().is_empty());
+}

@@ -315,6 +315,37 @@ impl Renderer for GpuRenderer {
     }
 
     fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame> {
+        let mut frames = render_gpu_batch(vec![(self, camera, part_transforms)])?;
+        frames
+            .pop()
+            .ok_or_else(|| SimError::Render("the batch returned no frame".into()))
+    }
+
+    fn as_gpu_mut(&mut self) -> Option<&mut GpuRenderer> {
+        Some(self)
+    }
+}
+
+/// What a frame recorded into a batch needs to be read back.
+struct Recorded {
+    width: u32,
+    height: u32,
+    intrinsics: crate::camera::Intrinsics,
+    world_from_camera: crate::math::Pose3,
+}
+
+impl GpuRenderer {
+    /// Stages this renderer's uniforms and records its render pass and the
+    /// copies to its readback buffers into `enc`. The caller holds the device
+    /// lock and submits. Each renderer owns its uniforms, targets and
+    /// buffers, so frames recorded side by side cannot see each other's.
+    fn record(
+        &mut self,
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        part_transforms: &[Mat4],
+    ) -> Result<Recorded> {
         let (w, h) = super::check_resolution(camera)?;
         let k = camera.intrinsics();
         let world_from_camera = camera.world_from_camera();
@@ -342,11 +373,6 @@ impl Renderer for GpuRenderer {
         for (slot, t) in parts.iter_mut().zip(part_transforms) {
             *slot = t.to_cols_array_2d();
         }
-        let gpu = self.gpu.clone();
-        let guard = gpu
-            .lock
-            .lock()
-            .map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
         gpu.queue
             .write_buffer(&self.camera_buf, 0, bytemuck::bytes_of(&uniform));
         gpu.queue
@@ -357,7 +383,6 @@ impl Renderer for GpuRenderer {
         let color_view = t.color.create_view(&Default::default());
         let data_view = t.data.create_view(&Default::default());
         let depth_view = t.depth.create_view(&Default::default());
-        let mut enc = gpu.device.create_command_encoder(&Default::default());
         {
             let attach = |view| {
                 Some(wgpu::RenderPassColorAttachment {
@@ -411,14 +436,23 @@ impl Renderer for GpuRenderer {
                     },
                 );
             };
-        copy(&mut enc, &t.color, &t.color_buf, 4);
-        copy(&mut enc, &t.data, &t.data_buf, 16);
-        gpu.queue.submit([enc.finish()]);
-        t.color_buf.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-        t.data_buf.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-        gpu.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| SimError::Render(format!("waiting for the frame: {e}")))?;
+        copy(enc, &t.color, &t.color_buf, 4);
+        copy(enc, &t.data, &t.data_buf, 16);
+        Ok(Recorded {
+            width: w,
+            height: h,
+            intrinsics: k,
+            world_from_camera,
+        })
+    }
+
+    /// The frame from this renderer's mapped readback buffers.
+    fn read_back(&self, r: &Recorded) -> Result<Frame> {
+        let t = self
+            .targets
+            .as_ref()
+            .ok_or_else(|| SimError::Render("no frame was recorded".into()))?;
+        let (w, h) = (r.width, r.height);
         let npix = (w * h) as usize;
         let mut frame = Frame {
             width: w,
@@ -427,53 +461,96 @@ impl Renderer for GpuRenderer {
             depth: vec![0.0; npix],
             segmentation: vec![0; npix],
             normal_in_world: vec![[0.0; 3]; npix],
-            intrinsics: k,
-            world_from_camera,
+            intrinsics: r.intrinsics,
+            world_from_camera: r.world_from_camera,
         };
-        {
-            let mapped = |b: &wgpu::Buffer| {
-                b.slice(..)
-                    .get_mapped_range()
-                    .map_err(|e| SimError::Render(format!("reading the frame back: {e:?}")))
-            };
-            let color = mapped(&t.color_buf)?;
-            let data = mapped(&t.data_buf)?;
-            // The device is free once the frame is mapped. Releasing the lock
-            // also keeps the parallel unpack below from deadlocking: a rayon
-            // worker waiting here may steal another renderer's frame.
-            drop(guard);
-            let (cp, dp, wu) = (padded(w * 4) as usize, padded(w * 16) as usize, w as usize);
-            // Rows unpack independently; on lavapipe this copy is a large share of a frame.
-            frame
-                .rgb
-                .par_chunks_mut(wu * 3)
-                .zip(frame.depth.par_chunks_mut(wu))
-                .zip(frame.segmentation.par_chunks_mut(wu))
-                .zip(frame.normal_in_world.par_chunks_mut(wu))
-                .enumerate()
-                .for_each(|(row, (((rgb, depth), seg), normal))| {
-                    let crow = &color[row * cp..row * cp + wu * 4];
-                    let drow: &[u32] = bytemuck::cast_slice(&data[row * dp..row * dp + wu * 16]);
-                    for col in 0..wu {
-                        rgb[col * 3..col * 3 + 3].copy_from_slice(&crow[col * 4..col * 4 + 3]);
-                        let d = &drow[col * 4..col * 4 + 4];
-                        if d[1] == super::SEG_BACKGROUND {
-                            continue;
-                        }
-                        depth[col] = f32::from_bits(d[0]);
-                        seg[col] = d[1];
-                        let (nx, ny) = unpack_snorm(d[2]);
-                        let (nz, _) = unpack_snorm(d[3]);
-                        normal[col] = Vec3::new(nx, ny, nz).normalize_or_zero().to_array();
+        let mapped = |b: &wgpu::Buffer| {
+            b.slice(..)
+                .get_mapped_range()
+                .map_err(|e| SimError::Render(format!("reading the frame back: {e:?}")))
+        };
+        let color = mapped(&t.color_buf)?;
+        let data = mapped(&t.data_buf)?;
+        let (cp, dp, wu) = (padded(w * 4) as usize, padded(w * 16) as usize, w as usize);
+        // Rows unpack independently; on lavapipe this copy is a large share of a frame.
+        frame
+            .rgb
+            .par_chunks_mut(wu * 3)
+            .zip(frame.depth.par_chunks_mut(wu))
+            .zip(frame.segmentation.par_chunks_mut(wu))
+            .zip(frame.normal_in_world.par_chunks_mut(wu))
+            .enumerate()
+            .for_each(|(row, (((rgb, depth), seg), normal))| {
+                let crow = &color[row * cp..row * cp + wu * 4];
+                let drow: &[u32] = bytemuck::cast_slice(&data[row * dp..row * dp + wu * 16]);
+                for col in 0..wu {
+                    rgb[col * 3..col * 3 + 3].copy_from_slice(&crow[col * 4..col * 4 + 3]);
+                    let d = &drow[col * 4..col * 4 + 4];
+                    if d[1] == super::SEG_BACKGROUND {
+                        continue;
                     }
-                });
-        }
-        let _guard = gpu
-            .lock
-            .lock()
-            .map_err(|_| SimError::Render("renderer lock poisoned".into()))?;
-        t.color_buf.unmap();
-        t.data_buf.unmap();
+                    depth[col] = f32::from_bits(d[0]);
+                    seg[col] = d[1];
+                    let (nx, ny) = unpack_snorm(d[2]);
+                    let (nz, _) = unpack_snorm(d[3]);
+                    normal[col] = Vec3::new(nx, ny, nz).normalize_or_zero().to_array();
+                }
+            });
         Ok(frame)
     }
+}
+
+/// Renders several scenes, each with its own renderer, in one submission:
+/// the device lock is taken once to record and submit them all, the device
+/// is waited on once, and the frames are read back in parallel without the
+/// lock. A frame is the same, bit for bit, as the renderer's own `render`,
+/// which is this function with one item.
+pub(super) fn render_gpu_batch(
+    mut items: Vec<(&mut GpuRenderer, &Camera, &[Mat4])>,
+) -> Result<Vec<Frame>> {
+    let Some(gpu) = items.first().map(|(r, _, _)| r.gpu.clone()) else {
+        return Ok(Vec::new());
+    };
+    let recorded = {
+        let guard = lock(&gpu)?;
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let recorded = items
+            .iter_mut()
+            .map(|(r, camera, transforms)| r.record(&gpu, &mut enc, camera, transforms))
+            .collect::<Result<Vec<_>>>()?;
+        gpu.queue.submit([enc.finish()]);
+        for (r, _, _) in &items {
+            if let Some(t) = &r.targets {
+                t.color_buf.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+                t.data_buf.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+            }
+        }
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| SimError::Render(format!("waiting for the frame: {e}")))?;
+        // The device is free once the frames are mapped. Releasing the lock
+        // also keeps the parallel unpack below from deadlocking: a rayon
+        // worker waiting here may steal another renderer's frame.
+        drop(guard);
+        recorded
+    };
+    let frames = items
+        .par_iter()
+        .zip(&recorded)
+        .map(|((r, _, _), rec)| r.read_back(rec))
+        .collect::<Result<Vec<_>>>();
+    let _guard = lock(&gpu)?;
+    for (r, _, _) in &items {
+        if let Some(t) = &r.targets {
+            t.color_buf.unmap();
+            t.data_buf.unmap();
+        }
+    }
+    frames
+}
+
+fn lock(gpu: &Gpu) -> Result<std::sync::MutexGuard<'_, ()>> {
+    gpu.lock
+        .lock()
+        .map_err(|_| SimError::Render("renderer lock poisoned".into()))
 }

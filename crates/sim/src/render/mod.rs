@@ -129,6 +129,63 @@ pub trait Renderer: Send + Sync {
     fn load(&mut self, meshes: &[RenderMesh]) -> Result<()>;
     /// Renders with the given transform per part slot.
     fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame>;
+    /// The wgpu renderer behind this one, which [`render_batch`] records into
+    /// a shared submission; None for renderers that draw on their own.
+    fn as_gpu_mut(&mut self) -> Option<&mut GpuRenderer> {
+        None
+    }
+}
+
+/// One frame to draw in a [`render_batch`]: a scene's renderer, camera and
+/// part transforms.
+pub struct RenderRequest<'a> {
+    pub renderer: &'a mut dyn Renderer,
+    pub camera: &'a Camera,
+    pub part_transforms: Vec<Mat4>,
+}
+
+/// Renders many scenes at once, each frame equal bit for bit to its
+/// renderer's own `render`. The wgpu frames go to the device in one
+/// submission, with its lock taken once and one wait (see
+/// `gpu::render_gpu_batch`); the others (the CPU renderer) render in parallel
+/// across scenes. Frames come back in the order of the requests.
+pub fn render_batch(requests: Vec<RenderRequest<'_>>) -> Result<Vec<Frame>> {
+    let n = requests.len();
+    let mut on_gpu = Vec::new();
+    let mut on_own = Vec::new();
+    for (i, r) in requests.into_iter().enumerate() {
+        // Asked twice: a borrow returned from the first call would be held
+        // over the `else` branch.
+        if r.renderer.as_gpu_mut().is_some() {
+            if let Some(g) = r.renderer.as_gpu_mut() {
+                on_gpu.push((i, g, r.camera, r.part_transforms));
+            }
+        } else {
+            on_own.push((i, r));
+        }
+    }
+    let mut frames: Vec<Option<Frame>> = (0..n).map(|_| None).collect();
+    let gpu_frames = gpu::render_gpu_batch(
+        on_gpu
+            .iter_mut()
+            .map(|(_, g, camera, t)| (&mut **g, *camera, t.as_slice()))
+            .collect(),
+    )?;
+    for ((i, ..), f) in on_gpu.iter().zip(gpu_frames) {
+        frames[*i] = Some(f);
+    }
+    use rayon::prelude::*;
+    let own_frames = on_own
+        .par_iter_mut()
+        .map(|(_, r)| r.renderer.render(r.camera, &r.part_transforms))
+        .collect::<Result<Vec<_>>>()?;
+    for ((i, _), f) in on_own.iter().zip(own_frames) {
+        frames[*i] = Some(f);
+    }
+    frames
+        .into_iter()
+        .map(|f| f.ok_or_else(|| SimError::Render("a request was not rendered".into())))
+        .collect()
 }
 
 /// Creates a renderer; `Auto` falls back to the CPU renderer with a one-line notice on stderr.
