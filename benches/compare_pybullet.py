@@ -17,7 +17,9 @@ the same machine load. Wall milliseconds, min / median:
 - umpnet in Rust: the physics time `move_gripper` measures inside Rust for
   the same moves, and `umpnet bench --object` on the same file for the
   observations;
-- `umpnet.VecEnv` actions per second at 120x160 for n = 1, 2, 4, 8;
+- `umpnet.VecEnv` actions per second at 120x160 for n = 1, 2, 4, 8, with
+  batched rendering (the default) and with each environment drawing its own
+  frame, taking turns;
 - render agreement: umpnet's wgpu segmentation against its CPU renderer's,
   over the object's pixels.
 
@@ -182,22 +184,32 @@ def episodes(case, urdf, repeats):
     return {k: stats(v) for k, v in times.items()}
 
 
-def vecenv_rates(sizes, res=LO, steps=30):
-    """Direction actions per second of VecEnv (each with an observation), wgpu."""
-    rates = {}
+def vecenv_rates(sizes, res=LO, steps=30, rounds=3):
+    """Direction actions per second of VecEnv (each with an observation), wgpu:
+    batched rendering (the default) and each environment drawing its own
+    frame, taking turns round by round; the median round of each."""
+    rates = {True: {n: [] for n in sizes}, False: {n: [] for n in sizes}}
+    envs = {}
     for n in sizes:
-        env = umpnet.VecEnv(n, seed=0, resolution=res, renderer="wgpu")
-        env.reset()
-        env.step_position(np.array(env.scripted_actions("oracle"), dtype=np.int64))
-        rng = np.random.default_rng(0)
-        d = rng.normal(size=(steps, n, 3)).astype(np.float32)
-        d /= np.linalg.norm(d, axis=2, keepdims=True)
-        env.step_direction(d[0])  # warm-up
-        t = time.perf_counter()
-        for k in range(steps):
-            env.step_direction(d[k])
-        rates[n] = n * steps / (time.perf_counter() - t)
-    return rates
+        for batch in (True, False):
+            env = umpnet.VecEnv(n, seed=0, resolution=res, renderer="wgpu", batch_render=batch)
+            env.reset()
+            env.step_position(np.array(env.scripted_actions("oracle"), dtype=np.int64))
+            envs[n, batch] = env
+    rng = np.random.default_rng(0)
+    for _ in range(rounds):
+        for n in sizes:
+            d = rng.normal(size=(steps + 1, n, 3)).astype(np.float32)
+            d /= np.linalg.norm(d, axis=2, keepdims=True)
+            for batch in (True, False):
+                env = envs[n, batch]
+                env.step_direction(d[0])  # warm-up
+                t = time.perf_counter()
+                for k in range(1, steps + 1):
+                    env.step_direction(d[k])
+                rates[batch][n].append(n * steps / (time.perf_counter() - t))
+    med = lambda v: float(np.median(v))  # noqa: E731
+    return {n: med(v) for n, v in rates[True].items()}, {n: med(v) for n, v in rates[False].items()}
 
 
 def agreement(urdf, seeds=3):
@@ -263,7 +275,9 @@ def main():
         log("umpnet bench (Rust) ...")
         result["rust_ms"] = rust_figures(urdf, a.repeats)
         log("VecEnv ...")
-        result["vecenv_actions_per_s"] = vecenv_rates([int(n) for n in a.sizes.split(",")])
+        batched, one_by_one = vecenv_rates([int(n) for n in a.sizes.split(",")])
+        result["vecenv_actions_per_s"] = batched
+        result["vecenv_one_by_one_actions_per_s"] = one_by_one
         log("render agreement ...")
         result["segmentation_agreement"] = agreement(urdf)
     result["targets"] = targets(result)
@@ -330,7 +344,10 @@ def report(r):
     )
     lines += [
         "",
-        "VecEnv at 120x160 (wgpu): " + ", ".join(f"n={n}: {v:.0f}/s" for n, v in r["vecenv_actions_per_s"].items()),
+        "VecEnv at 120x160 (wgpu), batched: "
+        + ", ".join(f"n={n}: {v:.0f}/s" for n, v in r["vecenv_actions_per_s"].items()),
+        "VecEnv at 120x160 (wgpu), one by one: "
+        + ", ".join(f"n={n}: {v:.0f}/s" for n, v in r["vecenv_one_by_one_actions_per_s"].items()),
     ]
     lines += [f"segmentation agreement, wgpu vs CPU renderer: {r['segmentation_agreement']:.4f}", "", "targets:"]
     for t in r["targets"]:

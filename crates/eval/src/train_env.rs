@@ -77,7 +77,7 @@ pub struct ObsMeta {
     pub gripper_pixel: Option<(usize, usize)>,
 }
 
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct PositionInfo {
     pub valid: bool,
     pub link: Option<usize>,
@@ -89,6 +89,7 @@ pub struct PositionInfo {
     pub threshold: Option<f32>,
 }
 
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ScriptedAction {
     Pixel(u32, u32),
     Direction([f32; 3]),

@@ -173,3 +173,76 @@ fn observe_into_equals_the_allocating_observation_bit_for_bit() {
     assert!(env.observe_into(&mut image, &mut seg[1..]).is_err());
     assert!(env.reference_into(&mut reference[1..]).is_err());
 }
+
+/// Deferred steps drawn together by `render_pending` (what `VecEnv` does)
+/// give the observations of immediate steps, bit for bit, with wgpu when it
+/// is here and with the CPU renderer; an environment that did not step keeps
+/// its frame; observing before the draw is an error, not a stale frame.
+#[test]
+fn deferred_steps_drawn_in_one_batch_equal_immediate_steps() {
+    use umpnet_eval::train_env::{EnvConfig, ScriptedAction, TrainEnv, render_pending};
+    use umpnet_sim::objects::InstanceSplit;
+    use umpnet_sim::render::{RendererKind, gpu_available};
+    let mut kinds = vec![RendererKind::Cpu];
+    if gpu_available() {
+        kinds.push(RendererKind::Wgpu);
+    }
+    let (h, w) = (48usize, 64usize);
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let observe = |e: &TrainEnv| {
+        let mut image = vec![f32::NAN; h * w * 10];
+        let mut seg = vec![-7i64; h * w];
+        e.observe_into(&mut image, &mut seg).map(|_| (bits(&image), seg))
+    };
+    for kind in kinds {
+        let mut cfg = EnvConfig::new(Task::Goal, InstanceSplit::Train);
+        cfg.resolution = (h as u32, w as u32);
+        cfg.renderer = kind;
+        let seeds = [11, 12, 13];
+        let mut immediate: Vec<TrainEnv> = seeds
+            .iter()
+            .map(|&s| TrainEnv::new(cfg.clone(), s).unwrap())
+            .collect();
+        let mut deferred: Vec<TrainEnv> = seeds
+            .iter()
+            .map(|&s| TrainEnv::new(cfg.clone(), s).unwrap())
+            .collect();
+        for e in immediate.iter_mut().chain(deferred.iter_mut()) {
+            e.reset_in_place(None).unwrap();
+        }
+        let mut drawn = 0;
+        for step in 0..8 {
+            // Environment 2 sits out odd steps: its frame must stay as it was.
+            let mut stepped = 0;
+            for (i, (a, b)) in immediate.iter_mut().zip(deferred.iter_mut()).enumerate() {
+                if i == 2 && step % 2 == 1 {
+                    continue;
+                }
+                let action = a.scripted_action("oracle").unwrap();
+                assert_eq!(action, b.scripted_action("oracle").unwrap());
+                match action {
+                    ScriptedAction::Pixel(r, c) => {
+                        assert_eq!(
+                            a.step_position_in_place(r, c).unwrap(),
+                            b.step_position_deferred(r, c).unwrap()
+                        );
+                    }
+                    ScriptedAction::Direction(d) => {
+                        a.step_direction_in_place(d).unwrap();
+                        b.step_direction_deferred(d).unwrap();
+                    }
+                    ScriptedAction::Stop => continue,
+                }
+                stepped += 1;
+                let err = observe(b).unwrap_err().to_string();
+                assert!(err.contains("render_pending"), "{err}");
+            }
+            render_pending(&mut deferred).unwrap();
+            for (i, (a, b)) in immediate.iter().zip(&deferred).enumerate() {
+                assert_eq!(observe(a).unwrap(), observe(b).unwrap(), "{kind:?} step {step} env {i}");
+            }
+            drawn += stepped;
+        }
+        assert!(drawn >= 12, "{kind:?}: only {drawn} deferred steps drawn");
+    }
+}
