@@ -192,7 +192,8 @@ fn deferred_steps_drawn_in_one_batch_equal_immediate_steps() {
     let observe = |e: &TrainEnv| {
         let mut image = vec![f32::NAN; h * w * 10];
         let mut seg = vec![-7i64; h * w];
-        e.observe_into(&mut image, &mut seg).map(|_| (bits(&image), seg))
+        e.observe_into(&mut image, &mut seg)
+            .map(|_| (bits(&image), seg))
     };
     for kind in kinds {
         let mut cfg = EnvConfig::new(Task::Goal, InstanceSplit::Train);
@@ -239,7 +240,11 @@ fn deferred_steps_drawn_in_one_batch_equal_immediate_steps() {
             }
             render_pending(&mut deferred).unwrap();
             for (i, (a, b)) in immediate.iter().zip(&deferred).enumerate() {
-                assert_eq!(observe(a).unwrap(), observe(b).unwrap(), "{kind:?} step {step} env {i}");
+                assert_eq!(
+                    observe(a).unwrap(),
+                    observe(b).unwrap(),
+                    "{kind:?} step {step} env {i}"
+                );
             }
             drawn += stepped;
         }

@@ -467,11 +467,7 @@ enum Outcome {
 /// One environment's part of `step_mixed`. With `batch`, grasps and moves
 /// leave their drawing to `render_pending`; a reset draws its own frames (it
 /// needs the goal image as well).
-fn mixed_step(
-    e: &mut TrainEnv,
-    a: Mixed,
-    batch: bool,
-) -> Result<Outcome, umpnet_eval::EvalError> {
+fn mixed_step(e: &mut TrainEnv, a: Mixed, batch: bool) -> Result<Outcome, umpnet_eval::EvalError> {
     Ok(match a {
         Mixed::Idle => Outcome::Idle,
         Mixed::Reset => {

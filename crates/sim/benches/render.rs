@@ -29,7 +29,12 @@ fn envs(n: u32, kind: RendererKind, (h, w): (u32, u32)) -> Vec<SimEnv> {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(u64::from(k));
             let scene =
                 sample_scene(&mut rng, Task::Exploration, Some(c), object, &model, None).unwrap();
-            SimEnv::new(scene, Camera::reference(h, w), create_renderer(kind).unwrap()).unwrap()
+            SimEnv::new(
+                scene,
+                Camera::reference(h, w),
+                create_renderer(kind).unwrap(),
+            )
+            .unwrap()
         })
         .collect()
 }
@@ -42,16 +47,20 @@ fn render(c: &mut Criterion) {
     for (kind, name) in kinds {
         for n in [1, 2, 4, 8] {
             let mut envs = envs(n, kind, (120, 160));
-            c.bench_function(&format!("render {name}: {n} frames 120x160, one by one"), |b| {
-                b.iter(|| {
-                    for e in &mut envs {
-                        e.render().unwrap();
-                    }
-                })
-            });
-            c.bench_function(&format!("render {name}: {n} frames 120x160, one batch"), |b| {
-                b.iter(|| render_batch(envs.iter_mut().map(|e| e.render_request()).collect()))
-            });
+            c.bench_function(
+                &format!("render {name}: {n} frames 120x160, one by one"),
+                |b| {
+                    b.iter(|| {
+                        for e in &mut envs {
+                            e.render().unwrap();
+                        }
+                    })
+                },
+            );
+            c.bench_function(
+                &format!("render {name}: {n} frames 120x160, one batch"),
+                |b| b.iter(|| render_batch(envs.iter_mut().map(|e| e.render_request()).collect())),
+            );
         }
     }
 }
