@@ -208,7 +208,7 @@ def vecenv_rates(sizes, res=LO, steps=30, rounds=3):
                 for k in range(1, steps + 1):
                     env.step_direction(d[k])
                 rates[batch][n].append(n * steps / (time.perf_counter() - t))
-    med = lambda v: float(np.median(v))  # noqa: E731
+    med = lambda v: float(np.median(v))
     return {n: med(v) for n, v in rates[True].items()}, {n: med(v) for n, v in rates[False].items()}
 
 

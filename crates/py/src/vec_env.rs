@@ -175,9 +175,11 @@ impl VecEnv {
                             e.step_position_in_place(row, col)
                         }
                     })
-                    .collect::<Result<Vec<_>, _>>()?;
+                    .collect::<Result<Vec<_>, _>>();
+                // Drawn even when one environment failed: the others' steps
+                // happened, and their observations must show them.
                 render_pending(envs)?;
-                Ok::<_, umpnet_eval::EvalError>(out)
+                out
             })
             .map_err(eval_err)?;
         let infos = out;
@@ -247,9 +249,11 @@ impl VecEnv {
                         Some(_) if batch => e.step_direction_deferred(*d).map(Some),
                         Some(_) => e.step_direction_in_place(*d).map(Some),
                     })
-                    .collect::<Result<Vec<_>, _>>()?;
+                    .collect::<Result<Vec<_>, _>>();
+                // Drawn even when one environment failed: the others' steps
+                // happened, and their observations must show them.
                 render_pending(envs)?;
-                Ok::<_, umpnet_eval::EvalError>(out)
+                out
             })
             .map_err(eval_err)?;
         let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
@@ -390,9 +394,11 @@ impl VecEnv {
                     .par_iter_mut()
                     .zip(&actions)
                     .map(|(e, a)| mixed_step(e, *a, batch))
-                    .collect::<Result<Vec<_>, _>>()?;
+                    .collect::<Result<Vec<_>, _>>();
+                // Drawn even when one environment failed: the others' steps
+                // happened, and their observations must show them.
                 render_pending(envs)?;
-                Ok::<_, umpnet_eval::EvalError>(out)
+                out
             })
             .map_err(eval_err)?;
         let reset: Vec<bool> = actions.iter().map(|a| matches!(a, Mixed::Reset)).collect();

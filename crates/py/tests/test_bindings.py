@@ -351,7 +351,7 @@ def test_batched_rendering_gives_the_same_observations_bit_for_bit(renderer):
     step with autoresets."""
     n = 3
     envs = [umpnet.VecEnv(n, seed=9, resolution=RES, renderer=renderer, batch_render=b) for b in (True, False)]
-    same = lambda x, y: all(x[k].tobytes() == y[k].tobytes() for k in x)  # noqa: E731
+    same = lambda x, y: all(x[k].tobytes() == y[k].tobytes() for k in x)
     a, b = (e.reset() for e in envs)
     assert same(a, b)
     px = np.array(envs[0].scripted_actions("oracle"), np.int64)
@@ -372,6 +372,27 @@ def test_batched_rendering_gives_the_same_observations_bit_for_bit(renderer):
         assert same(a, b) and ia["kind"].tolist() == ib["kind"].tolist()
         kinds |= set(ia["kind"].tolist())
     assert kinds == {1, 2, 3}, kinds  # reset, grasp and move were all drawn
+
+
+def test_a_failed_environment_in_a_batched_step_leaves_the_others_usable():
+    """One bad pixel fails the step with a ValueError naming it; the other
+    environment's grasp happened and was drawn, so it moves on the next step
+    and its observation matches a lone Env's."""
+    vec = umpnet.VecEnv(2, resolution=RES, seed=1)
+    vec.reset()
+    px = np.array(vec.scripted_actions("oracle"), np.int64)
+    bad = px.copy()
+    bad[1] = [1000, 1000]
+    with pytest.raises(ValueError, match=r"pixel \(row 1000, col 1000\) outside"):
+        vec.step_position(bad)
+    single = umpnet.Env(resolution=RES, seed=1)
+    single.reset()
+    single.step_position(*px[0])
+    d = np.array([[0.0, -1.0, 0.0]] * 2, np.float32)
+    obs, labels, info = vec.step_direction(d)
+    assert info["active"].tolist() == [True, False]
+    o, lab, _ = single.step_direction(d[0].tolist())
+    assert np.array_equal(obs["image"][0], o["image"]) and labels["r_dist"][0] == pytest.approx(lab["r_dist"])
 
 
 def test_absurd_sizes_are_value_errors_not_crashes():
