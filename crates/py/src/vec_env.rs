@@ -16,7 +16,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 use std::path::PathBuf;
-use umpnet_eval::train_env::{TrainEnv, render_pending};
+use umpnet_eval::EvalError;
+use umpnet_eval::train_env::{PositionInfo, TrainEnv, render_pending};
 use umpnet_sim::env::StepLabels;
 use umpnet_sim::scene::Scene;
 
@@ -163,24 +164,7 @@ impl VecEnv {
         };
         let (envs, batch) = (&mut self.envs, self.batch_render);
         let out = py
-            .detach(|| {
-                let out = envs
-                    .par_iter_mut()
-                    .enumerate()
-                    .map(|(i, e)| {
-                        let (row, col) = (p[2 * i], p[2 * i + 1]);
-                        if batch {
-                            e.step_position_deferred(row, col)
-                        } else {
-                            e.step_position_in_place(row, col)
-                        }
-                    })
-                    .collect::<Result<Vec<_>, _>>();
-                // Drawn even when one environment failed: the others' steps
-                // happened, and their observations must show them.
-                render_pending(envs)?;
-                out
-            })
+            .detach(|| step_all(envs, |i, e| grasp_at(e, p[2 * i], p[2 * i + 1], batch)))
             .map_err(eval_err)?;
         let infos = out;
         let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
@@ -241,19 +225,10 @@ impl VecEnv {
         let (envs, batch) = (&mut self.envs, self.batch_render);
         let out = py
             .detach(|| {
-                let out = envs
-                    .par_iter_mut()
-                    .zip(&dirs)
-                    .map(|(e, d)| match e.grasped_joint() {
-                        None => Ok(None),
-                        Some(_) if batch => e.step_direction_deferred(*d).map(Some),
-                        Some(_) => e.step_direction_in_place(*d).map(Some),
-                    })
-                    .collect::<Result<Vec<_>, _>>();
-                // Drawn even when one environment failed: the others' steps
-                // happened, and their observations must show them.
-                render_pending(envs)?;
-                out
+                step_all(envs, |i, e| match e.grasped_joint() {
+                    None => Ok(None),
+                    Some(_) => move_along(e, dirs[i], batch).map(Some),
+                })
             })
             .map_err(eval_err)?;
         let obs = self.buffers.fill(py, &mut self.envs, false, self.copy)?;
@@ -389,17 +364,7 @@ impl VecEnv {
         }
         let (envs, batch) = (&mut self.envs, self.batch_render);
         let outcomes = py
-            .detach(|| {
-                let out = envs
-                    .par_iter_mut()
-                    .zip(&actions)
-                    .map(|(e, a)| mixed_step(e, *a, batch))
-                    .collect::<Result<Vec<_>, _>>();
-                // Drawn even when one environment failed: the others' steps
-                // happened, and their observations must show them.
-                render_pending(envs)?;
-                out
-            })
+            .detach(|| step_all(envs, |i, e| mixed_step(e, actions[i], batch)))
             .map_err(eval_err)?;
         let reset: Vec<bool> = actions.iter().map(|a| matches!(a, Mixed::Reset)).collect();
         let obs = self
@@ -463,17 +428,51 @@ enum Outcome {
     Idle,
     Reset,
     Grasp {
-        info: umpnet_eval::train_env::PositionInfo,
+        info: PositionInfo,
         start: f32,
         goal: f32,
     },
     Move(StepLabels),
 }
 
+/// `f` on every environment in parallel, then the frames its steps left to
+/// draw, in one batch. They are drawn even when one environment failed: the
+/// others' steps happened, and their observations must show them.
+fn step_all<T: Send>(
+    envs: &mut [TrainEnv],
+    f: impl Fn(usize, &mut TrainEnv) -> Result<T, EvalError> + Sync + Send,
+) -> Result<Vec<T>, EvalError> {
+    let out = envs
+        .par_iter_mut()
+        .enumerate()
+        .map(|(i, e)| f(i, e))
+        .collect();
+    render_pending(envs)?;
+    out
+}
+
+/// A grasp whose frame `step_all` draws with the batch (`batch`), or at once.
+fn grasp_at(e: &mut TrainEnv, row: u32, col: u32, batch: bool) -> Result<PositionInfo, EvalError> {
+    if batch {
+        e.step_position_deferred(row, col)
+    } else {
+        e.step_position_in_place(row, col)
+    }
+}
+
+/// A move whose frame `step_all` draws with the batch (`batch`), or at once.
+fn move_along(e: &mut TrainEnv, d: [f32; 3], batch: bool) -> Result<StepLabels, EvalError> {
+    if batch {
+        e.step_direction_deferred(d)
+    } else {
+        e.step_direction_in_place(d)
+    }
+}
+
 /// One environment's part of `step_mixed`. With `batch`, grasps and moves
 /// leave their drawing to `render_pending`; a reset draws its own frames (it
 /// needs the goal image as well).
-fn mixed_step(e: &mut TrainEnv, a: Mixed, batch: bool) -> Result<Outcome, umpnet_eval::EvalError> {
+fn mixed_step(e: &mut TrainEnv, a: Mixed, batch: bool) -> Result<Outcome, EvalError> {
     Ok(match a {
         Mixed::Idle => Outcome::Idle,
         Mixed::Reset => {
@@ -481,11 +480,7 @@ fn mixed_step(e: &mut TrainEnv, a: Mixed, batch: bool) -> Result<Outcome, umpnet
             Outcome::Reset
         }
         Mixed::Grasp(r, c) => {
-            let info = if batch {
-                e.step_position_deferred(r, c)?
-            } else {
-                e.step_position_in_place(r, c)?
-            };
+            let info = grasp_at(e, r, c, batch)?;
             let value = |joints: &[f32]| {
                 info.joint
                     .and_then(|j| joints.get(j).copied())
@@ -498,8 +493,7 @@ fn mixed_step(e: &mut TrainEnv, a: Mixed, batch: bool) -> Result<Outcome, umpnet
                 .map_or(f32::NAN, |g| value(&g.joints));
             Outcome::Grasp { info, start, goal }
         }
-        Mixed::Move(d) if batch => Outcome::Move(e.step_direction_deferred(d)?),
-        Mixed::Move(d) => Outcome::Move(e.step_direction_in_place(d)?),
+        Mixed::Move(d) => Outcome::Move(move_along(e, d, batch)?),
     })
 }
 
@@ -520,7 +514,7 @@ fn mixed_info<'py>(
         })
         .collect();
     d.set_item("kind", PyArray1::from_vec(py, kind))?;
-    let grasp = |f: &dyn Fn(&umpnet_eval::train_env::PositionInfo, f32, f32) -> f32| -> Vec<f32> {
+    let grasp = |f: &dyn Fn(&PositionInfo, f32, f32) -> f32| -> Vec<f32> {
         outcomes
             .iter()
             .map(|o| match o {

@@ -155,8 +155,8 @@ impl SimEnv {
 
     /// Renders the current state (with the gripper when it holds something).
     pub fn render(&mut self) -> Result<Frame> {
-        let t = self.part_transforms();
-        self.renderer.render(&self.camera, &t)
+        let r = self.render_request();
+        r.renderer.render(r.camera, &r.part_transforms)
     }
 
     /// What [`SimEnv::render`] would draw, as a request for

@@ -15,6 +15,7 @@ use crate::camera::{Camera, Intrinsics};
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Pose3, Vec3};
 use crate::mesh::TriMesh;
+use rayon::prelude::*;
 
 /// Segment ids in [`Frame::segmentation`].
 pub const SEG_BACKGROUND: u32 = 0;
@@ -174,7 +175,6 @@ pub fn render_batch(requests: Vec<RenderRequest<'_>>) -> Result<Vec<Frame>> {
     for ((i, ..), f) in on_gpu.iter().zip(gpu_frames) {
         frames[*i] = Some(f);
     }
-    use rayon::prelude::*;
     let own_frames = on_own
         .par_iter_mut()
         .map(|(_, r)| r.renderer.render(r.camera, &r.part_transforms))
