@@ -16,10 +16,7 @@ install:
 install-runtime:
 	@bash scripts/install.sh runtime
 
-# `CARGO_FEATURES=--features umpnet-cli/rerun` builds Rerun recordings (`--rrd`) in;
-# `make test-rerun` builds and tests them (the Rerun SDK is ~300 crates, about
-# 27 CPU-minutes here). `make test` type-checks the feature with clippy
-# (`lint-rerun`, about 5 minutes here) and tests the refusal without it.
+# `CARGO_FEATURES=--features umpnet-cli/rerun` builds Rerun recordings (`--rrd`) in.
 CARGO_FEATURES ?=
 
 build: install-runtime
@@ -103,13 +100,19 @@ mutants: build py fixture
 	UMPNET_FIXTURE=$(FIXTURE) $(PY) scripts/cargo_mutants.py
 	UMPNET_FIXTURE=$(FIXTURE) $(PY) scripts/mutants.py
 
-test: lint lint-rerun test-rust test-python mutants-ci
+# Last: it leaves target/release/umpnet built with Rerun, after test-python has
+# checked that the default build refuses `--rrd`.
+test: lint test-rust test-python mutants-ci test-rerun
 
-test-rerun: CARGO_FEATURES := --features umpnet-cli/rerun
-test-rerun: build
-	cargo clippy --release -p umpnet-cli --all-targets $(CARGO_FEATURES) -- -D warnings
-	cargo test --release -p umpnet-cli $(CARGO_FEATURES)
-	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py -k rrd
+# The `rerun` feature for real: lint, the readback test, and recordings made by
+# the CLI. The Rerun SDK is ~400 more crates; crates/workspace-hack lets them
+# share the simulator stack already built by test-rust.
+RERUN := -p umpnet-cli --features umpnet-cli/rerun
+test-rerun: install fixture
+	cargo clippy --release $(RERUN) --all-targets -- -D warnings
+	cargo test --release $(RERUN)
+	cargo build --release $(RERUN)
+	UMPNET_REQUIRE_RERUN=1 UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py -k rrd
 
 clean:
 	cargo clean

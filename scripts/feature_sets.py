@@ -22,6 +22,7 @@ GRAPHS = {
     "cargo test (default members)": ["-e", "normal,build,dev"],
     "cargo build (the umpnet binary)": ["-p", "umpnet-cli", "-e", "normal,build"],
     "maturin (the Python extension)": ["-p", "umpnet-py", "-e", "normal,build", "-F", "pyo3/extension-module"],
+    "make test-rerun (the CLI with Rerun)": ["-p", "umpnet-cli", "-e", "normal,build,dev", "-F", "umpnet-cli/rerun"],
 }
 
 
@@ -46,7 +47,8 @@ def main() -> int:
     bad = 0
     for label, found in graphs.items():
         for name, feats in sorted(found.items()):
-            if feats != union[name]:
+            # The CLI itself: its `rerun` feature is what tells the last graph apart.
+            if feats != union[name] and not name.startswith("umpnet-cli "):
                 bad += 1
                 print(f"{name}: {label} builds it without {sorted(union[name] - feats)}")
     if bad:

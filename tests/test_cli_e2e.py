@@ -460,6 +460,8 @@ def built_with_rerun(tmp_path) -> bool:
     if "built without Rerun support" not in p.stderr:
         assert p.returncode == 0, p.stderr
         return True
+    # `make test-rerun` sets it: there a refusal means the wrong binary was tested.
+    assert not os.environ.get("UMPNET_REQUIRE_RERUN"), f"{UMPNET} was built without the rerun feature"
     assert p.returncode == 2 and "--features rerun" in p.stderr, p.stderr
     assert not probe.exists() and p.stdout == ""
     bad = run("eval", "--categories", "Door", "--episodes-per-category", "1", "--rrd", str(tmp_path / "r"), check=False)
