@@ -259,7 +259,11 @@ def main():
     p.add_argument("--sizes", default="1,2,4,8", help="VecEnv sizes")
     p.add_argument("--json", action="store_true")
     a = p.parse_args()
-    folder = Path(tempfile.mkdtemp(prefix="umpnet-compare-"))
+    with tempfile.TemporaryDirectory(prefix="umpnet-compare-") as folder:
+        return compare(Path(folder), a)
+
+
+def compare(folder: Path, a: argparse.Namespace) -> int:
     case = cabinet_cases(folder)[1]  # the door, pulled along its opening tangent
     urdf = case.urdf
     log = (lambda *_: None) if a.json else (lambda *m: print(*m, file=sys.stderr, flush=True))

@@ -45,6 +45,20 @@ _MOUNT_URDF = """<?xml version="1.0"?>
 _CARRIAGE = 2  # link index of "lz": the suction attaches at its origin
 
 
+# One mount file per process, in a folder removed when the process exits (a
+# folder per simulator left hundreds behind in /tmp after each test run).
+_MOUNT_DIR: tempfile.TemporaryDirectory | None = None
+
+
+def _mount_file() -> str:
+    global _MOUNT_DIR
+    if _MOUNT_DIR is None:
+        _MOUNT_DIR = tempfile.TemporaryDirectory(prefix="umpnet-ref-")
+        with open(os.path.join(_MOUNT_DIR.name, "mount.urdf"), "w") as f:
+            f.write(_MOUNT_URDF)
+    return os.path.join(_MOUNT_DIR.name, "mount.urdf")
+
+
 @dataclass
 class Outcome:
     joint_before: float
@@ -82,9 +96,7 @@ class ReferenceSim:
         self.mount = None
         self._point_in_link = None
         self._link = None
-        self._mount_file = os.path.join(tempfile.mkdtemp(prefix="umpnet-ref-"), "mount.urdf")
-        with open(self._mount_file, "w") as f:
-            f.write(_MOUNT_URDF)
+        self._mount_file = _mount_file()
 
     def close(self):
         self.bc.disconnect()
