@@ -48,7 +48,7 @@ from pybullet_utils import bullet_client
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "reference"))
 from differential import CABINET_URDF, cabinet_cases
-from pybullet_sim import ReferenceSim
+from pybullet_sim import ReferenceSim, StdoutToStderr
 
 HI, LO = (480, 640), (120, 160)
 OBJECT_SEGMENT = 1 << 16  # segmentation ids: 0 background, 1 floor, 2 gripper, 2**16 + part
@@ -237,20 +237,6 @@ def rust_figures(urdf, frames):
         if r["figure"].startswith("observation") and r["renderer"].startswith("wgpu"):
             out[r["figure"].split()[1]] = r["median_ms"]
     return out
-
-
-class StdoutToStderr:
-    """PyBullet's C code prints to file descriptor 1; keep it off the report (and the JSON)."""
-
-    def __enter__(self):
-        sys.stdout.flush()
-        self.saved = os.dup(1)
-        os.dup2(2, 1)
-
-    def __exit__(self, *_):
-        sys.stdout.flush()
-        os.dup2(self.saved, 1)
-        os.close(self.saved)
 
 
 def main():

@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import umpnet
-from pybullet_sim import ReferenceSim
+from pybullet_sim import ReferenceSim, StdoutToStderr
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -317,7 +317,8 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         cases = cabinet_cases(tmp) + generated_cases(a.umpnet, tmp / "objects", a.per_category)
-        results = [run_case(c, a.physics) for c in cases]
+        with StdoutToStderr():
+            results = [run_case(c, a.physics) for c in cases]
     summary = summarize(results)
     if a.json:
         print(json.dumps(summary, indent=2))

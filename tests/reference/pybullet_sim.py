@@ -10,6 +10,7 @@ Written for umpnet's tests; it shares no code with the paper's repository.
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 from dataclasses import dataclass
 
@@ -43,6 +44,20 @@ _MOUNT_URDF = """<?xml version="1.0"?>
 </robot>
 """
 _CARRIAGE = 2  # link index of "lz": the suction attaches at its origin
+
+
+class StdoutToStderr:
+    """PyBullet's C code prints to file descriptor 1; keep it off a report (and its JSON)."""
+
+    def __enter__(self):
+        sys.stdout.flush()
+        self.saved = os.dup(1)
+        os.dup2(2, 1)
+
+    def __exit__(self, *_):
+        sys.stdout.flush()
+        os.dup2(self.saved, 1)
+        os.close(self.saved)
 
 
 # One mount file per process, in a folder removed when the process exits (a
