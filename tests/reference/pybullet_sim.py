@@ -61,7 +61,7 @@ class StdoutToStderr:
 
 
 # One mount file per process, in a folder removed when the process exits (a
-# folder per simulator left hundreds behind in /tmp after each test run).
+# folder per simulator left dozens behind in /tmp after each test run).
 _MOUNT_DIR: tempfile.TemporaryDirectory | None = None
 
 
