@@ -61,8 +61,9 @@ train-baselines: build py
 	bash scripts/train_baselines.sh
 
 # The `rerun` feature's code, type-checked and linted without building the SDK.
+RERUN := -p umpnet-cli --features umpnet-cli/rerun
 lint-rerun: install
-	cargo clippy --release -p umpnet-cli --all-targets --features umpnet-cli/rerun -- -D warnings
+	cargo clippy --release $(RERUN) --all-targets -- -D warnings
 
 lint: install
 	cargo fmt --all --check
@@ -107,9 +108,7 @@ test: lint test-rust test-python mutants-ci test-rerun
 # The `rerun` feature for real: lint, the readback test, and recordings made by
 # the CLI. The Rerun SDK is ~400 more crates; crates/workspace-hack lets them
 # share the simulator stack already built by test-rust.
-RERUN := -p umpnet-cli --features umpnet-cli/rerun
-test-rerun: install fixture
-	cargo clippy --release $(RERUN) --all-targets -- -D warnings
+test-rerun: lint-rerun fixture
 	cargo test --release $(RERUN)
 	cargo build --release $(RERUN)
 	UMPNET_REQUIRE_RERUN=1 UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py -k rrd
