@@ -12,6 +12,7 @@ use crate::{EvalError, Result};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use std::path::PathBuf;
 use std::sync::Arc;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::SimEnv;
@@ -38,6 +39,110 @@ fn mix(parts: &[u64]) -> u64 {
         h ^= h >> 31;
     }
     h
+}
+
+/// What one table row of the benchmark scores: the test instances of a
+/// generated category, or one object file (`eval --objects DIR`: a folder's
+/// `NAME/mobility.urdf`, placed by its `object_meta_info.json`).
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Row {
+    Category(Category),
+    Object(ObjectRow),
+}
+
+/// An object file scored as its own row, named after its folder.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct ObjectRow {
+    pub name: String,
+    pub urdf: PathBuf,
+}
+
+impl Row {
+    pub fn name(&self) -> &str {
+        match self {
+            Row::Category(c) => c.name(),
+            Row::Object(o) => &o.name,
+        }
+    }
+
+    pub fn category(&self) -> Option<Category> {
+        match self {
+            Row::Category(c) => Some(*c),
+            Row::Object(_) => None,
+        }
+    }
+}
+
+impl std::fmt::Display for Row {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Every `DIR/NAME/mobility.urdf`, as rows named NAME in name order.
+pub fn object_rows(dir: &std::path::Path) -> Result<Vec<Row>> {
+    let entries = std::fs::read_dir(dir)
+        .map_err(|e| EvalError::Episode(format!("--objects {}: {e}", dir.display())))?;
+    let mut rows = Vec::new();
+    for entry in entries {
+        let entry =
+            entry.map_err(|e| EvalError::Episode(format!("--objects {}: {e}", dir.display())))?;
+        let urdf = entry.path().join("mobility.urdf");
+        if urdf.is_file() {
+            rows.push(Row::Object(ObjectRow {
+                name: entry.file_name().to_string_lossy().into_owned(),
+                urdf,
+            }));
+        }
+    }
+    rows.sort();
+    if rows.is_empty() {
+        return Err(EvalError::Episode(format!(
+            "--objects {}: no NAME/mobility.urdf in it (python -m umpnet.objects import-mjcf writes that layout)",
+            dir.display()
+        )));
+    }
+    Ok(rows)
+}
+
+/// FNV-1a: a name's hash that stays the same across platforms and versions.
+fn name_hash(name: &str) -> u64 {
+    name.bytes().fold(0xCBF2_9CE4_8422_2325u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01B3)
+    })
+}
+
+/// The seed of scene `k` of a row. A category's is [`scene_seed`]'s; an
+/// object's depends on its name, not on where its folder is.
+pub fn row_seed(seed: u64, task: Task, row: &Row, k: u32) -> u64 {
+    match row {
+        Row::Category(c) => scene_seed(seed, task, *c, k),
+        Row::Object(o) => mix(&[seed, task as u64, u64::MAX, name_hash(&o.name), k as u64]),
+    }
+}
+
+/// Scene `k` of a row: for a category, [`benchmark_scene`]; for an object,
+/// its file placed and posed by the protocol, a goal on a joint the camera sees.
+pub fn row_scene(
+    seed: u64,
+    task: Task,
+    row: &Row,
+    k: u32,
+    dataset_seed: u64,
+    physics: PhysicsProfile,
+) -> Result<Scene> {
+    match row {
+        Row::Category(c) => benchmark_scene(seed, task, *c, k, dataset_seed, physics),
+        Row::Object(o) => sample_visible_scene(
+            &mut ChaCha8Rng::seed_from_u64(row_seed(seed, task, row, k)),
+            task,
+            None,
+            ObjectSource::File {
+                path: o.urdf.clone(),
+            },
+            physics,
+        ),
+    }
 }
 
 pub fn scene_seed(seed: u64, task: Task, category: Category, k: u32) -> u64 {
@@ -125,7 +230,8 @@ pub fn sample_visible_scene(
 #[derive(Clone, Debug)]
 pub struct BenchConfig {
     pub task: Task,
-    pub categories: Vec<Category>,
+    /// The table's rows: categories, object files, or both.
+    pub rows: Vec<Row>,
     pub episodes_per_category: u32,
     pub seed: u64,
     pub dataset_seed: u64,
@@ -199,12 +305,12 @@ impl std::str::FromStr for Shard {
 }
 
 impl BenchConfig {
-    /// The scenes this configuration runs, as (category, index), in the
+    /// The scenes this configuration runs, as (row, index), in the
     /// canonical order that results are reported in.
-    pub fn scenes(&self) -> Vec<(Category, u32)> {
-        self.categories
+    pub fn scenes(&self) -> Vec<(&Row, u32)> {
+        self.rows
             .iter()
-            .flat_map(|&c| (0..self.episodes_per_category).map(move |k| (c, k)))
+            .flat_map(|r| (0..self.episodes_per_category).map(move |k| (r, k)))
             .enumerate()
             .filter(|(position, _)| self.shard.holds(*position))
             .map(|(_, scene)| scene)
@@ -214,7 +320,11 @@ impl BenchConfig {
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct EpisodeOutcome {
-    pub category: Category,
+    /// The row: a category, or an object file's name (one of the two).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub category: Option<Category>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub object: Option<String>,
     pub index: u32,
     pub policy: String,
     pub episode: Option<Episode>,
@@ -231,8 +341,8 @@ pub fn run_benchmark(
     let jobs = cfg.scenes();
     let results: Vec<Vec<EpisodeOutcome>> = jobs
         .par_iter()
-        .map(|&(category, k)| {
-            let out = run_scene(cfg, policies, category, k);
+        .map(|&(row, k)| {
+            let out = run_scene(cfg, policies, row, k);
             progress();
             out
         })
@@ -243,58 +353,50 @@ pub fn run_benchmark(
 fn run_scene(
     cfg: &BenchConfig,
     policies: &[(String, PolicyFactory)],
-    category: Category,
+    row: &Row,
     k: u32,
 ) -> Vec<EpisodeOutcome> {
     policies
         .iter()
-        .map(
-            |(name, make)| match run_one(cfg, name, make, category, k, None) {
-                Ok(ep) => EpisodeOutcome {
-                    category,
-                    index: k,
-                    policy: name.clone(),
-                    episode: Some(ep),
-                    error: None,
+        .map(|(name, make)| {
+            let (episode, error) = match run_one(cfg, name, make, row, k, None) {
+                Ok(ep) => (Some(ep), None),
+                Err(e) => (None, Some(e.to_string())),
+            };
+            EpisodeOutcome {
+                category: row.category(),
+                object: match row {
+                    Row::Object(o) => Some(o.name.clone()),
+                    Row::Category(_) => None,
                 },
-                Err(e) => EpisodeOutcome {
-                    category,
-                    index: k,
-                    policy: name.clone(),
-                    episode: None,
-                    error: Some(e.to_string()),
-                },
-            },
-        )
+                index: k,
+                policy: name.clone(),
+                episode,
+                error,
+            }
+        })
         .collect()
 }
 
-/// One episode of the benchmark: `policy` on scene `k` of `category`, exactly
+/// One episode of the benchmark: `policy` on scene `k` of `row`, exactly
 /// as `run_benchmark` runs it (the same scene, seed, camera and budget), with
 /// an optional hook. Used to record chosen episodes again after a run.
 pub fn run_one(
     cfg: &BenchConfig,
     name: &str,
     make: &PolicyFactory,
-    category: Category,
+    row: &Row,
     k: u32,
     hook: Option<FrameHook>,
 ) -> Result<Episode> {
-    let scene = benchmark_scene(
-        cfg.seed,
-        cfg.task,
-        category,
-        k,
-        cfg.dataset_seed,
-        cfg.physics,
-    )
-    .map_err(|e| EvalError::Episode(e.to_string()))?;
+    let scene = row_scene(cfg.seed, cfg.task, row, k, cfg.dataset_seed, cfg.physics)
+        .map_err(|e| EvalError::Episode(e.to_string()))?;
     let budget = cfg
         .steps
-        .unwrap_or_else(|| cfg.protocol.budget(cfg.task, Some(category)));
+        .unwrap_or_else(|| cfg.protocol.budget(cfg.task, row.category()));
     let mut policy = make()?;
     let renderer = create_renderer(cfg.renderer)?;
-    let seed = scene_seed(cfg.seed ^ 0x5EED, cfg.task, category, k);
+    let seed = row_seed(cfg.seed ^ 0x5EED, cfg.task, row, k);
     run_episode(
         &scene,
         cfg.policy_cameras.get(name).unwrap_or(&cfg.camera),

@@ -7,7 +7,7 @@
     reason = "tests and benchmarks fail by panicking"
 )]
 use std::sync::Arc;
-use umpnet_eval::bench::{BenchConfig, PolicyFactory, Shard, run_benchmark};
+use umpnet_eval::bench::{BenchConfig, PolicyFactory, Row, Shard, object_rows, run_benchmark};
 use umpnet_eval::policy::{Decision, Observation, Policy, StepRecord};
 use umpnet_eval::{EvalError, Result};
 use umpnet_sim::camera::Camera;
@@ -34,7 +34,7 @@ impl Policy for Broken {
 fn config(task: Task, categories: Vec<Category>, episodes_per_category: u32) -> BenchConfig {
     BenchConfig {
         task,
-        categories,
+        rows: categories.into_iter().map(Row::Category).collect(),
         episodes_per_category,
         seed: 0,
         dataset_seed: 0,
@@ -77,16 +77,24 @@ fn failed_episodes_are_reported_with_their_scene_and_the_run_goes_on() {
 fn shards_partition_the_scenes_in_canonical_order() {
     let categories = vec![Category::Door, Category::Laptop, Category::Microwave];
     let mut cfg = config(Task::Exploration, categories, 5);
-    let all = cfg.scenes();
+    let all: Vec<(Row, u32)> = cfg
+        .scenes()
+        .into_iter()
+        .map(|(r, k)| (r.clone(), k))
+        .collect();
     assert_eq!(all.len(), 15);
-    assert_eq!(all[0], (Category::Door, 0));
-    assert_eq!(all[5], (Category::Laptop, 0));
+    assert_eq!(all[0], (Row::Category(Category::Door), 0));
+    assert_eq!(all[5], (Row::Category(Category::Laptop), 0));
     for count in [1u32, 2, 4, 15, 16] {
         let mut seen = Vec::new();
         let mut sizes = Vec::new();
         for index in 1..=count {
             cfg.shard = Shard::new(index, count).expect("valid shard");
-            let part = cfg.scenes();
+            let part: Vec<(Row, u32)> = cfg
+                .scenes()
+                .into_iter()
+                .map(|(r, k)| (r.clone(), k))
+                .collect();
             sizes.push(part.len());
             seen.extend(part);
         }
@@ -96,7 +104,7 @@ fn shards_partition_the_scenes_in_canonical_order() {
             hi.zip(lo).is_some_and(|(h, l)| h - l <= 1),
             "{count}: {sizes:?}"
         );
-        seen.sort_by_key(|&(c, k)| (all.iter().position(|s| *s == (c, k)), k));
+        seen.sort_by_key(|s| all.iter().position(|a| a == s));
         assert_eq!(seen, all, "{count} shards");
     }
     assert_eq!(
@@ -110,4 +118,74 @@ fn shards_partition_the_scenes_in_canonical_order() {
             "{bad}: {e:?}"
         );
     }
+}
+
+/// Generated instances written as files under `dir/NAME/`, placed by an
+/// `object_meta_info.json` as an imported object is.
+fn object_folder(dir: &std::path::Path, names: &[(&str, u32)]) {
+    for (name, index) in names {
+        let tmp = tempfile::tempdir().unwrap();
+        let urdf = umpnet_sim::objects::generate(Category::Microwave, *index, 0)
+            .write(tmp.path())
+            .unwrap();
+        let dest = dir.join(name);
+        std::fs::create_dir_all(dest.join("textured_objs")).unwrap();
+        let src = urdf.parent().unwrap();
+        std::fs::copy(&urdf, dest.join("mobility.urdf")).unwrap();
+        for f in std::fs::read_dir(src.join("textured_objs")).unwrap() {
+            let f = f.unwrap().path();
+            std::fs::copy(&f, dest.join("textured_objs").join(f.file_name().unwrap())).unwrap();
+        }
+        std::fs::write(
+            dest.join("object_meta_info.json"),
+            r#"{"orientation":[0,0,0,1],"offset_z":0,"scale":0.55}"#,
+        )
+        .unwrap();
+    }
+}
+
+#[test]
+fn object_folders_are_rows_named_by_folder_with_scenes_that_do_not_depend_on_the_path() {
+    let a = tempfile::tempdir().unwrap();
+    object_folder(a.path(), &[("oven_b", 1), ("oven_a", 0)]);
+    std::fs::create_dir_all(a.path().join("not_an_object")).unwrap();
+    let rows = object_rows(a.path()).unwrap();
+    let names: Vec<&str> = rows.iter().map(Row::name).collect();
+    assert_eq!(names, ["oven_a", "oven_b"]);
+    let mut cfg = config(Task::Goal, vec![], 2);
+    cfg.rows = rows;
+    let oracle: PolicyFactory =
+        Arc::new(|| Ok(umpnet_eval::scripted_policy("oracle").expect("oracle exists")));
+    let out = run_benchmark(&cfg, &[("oracle".into(), oracle.clone())], &|| {});
+    assert_eq!(out.len(), 4);
+    for o in &out {
+        assert!(o.category.is_none(), "{o:?}");
+        assert!(o.error.is_none(), "{:?}", o.error);
+        let ep = o.episode.as_ref().unwrap();
+        assert!(
+            ep.metrics.success,
+            "the oracle reaches the goal on {:?}",
+            o.object
+        );
+        assert!(ep.scene.category.is_none());
+    }
+    let json = serde_json::to_value(&out[0]).unwrap();
+    assert_eq!(json["object"], "oven_a");
+    assert!(json.get("category").is_none(), "{json}");
+    // The same objects in another folder: the same scenes, bar the file's path.
+    let b = tempfile::tempdir().unwrap();
+    object_folder(b.path(), &[("oven_a", 0), ("oven_b", 1)]);
+    cfg.rows = object_rows(b.path()).unwrap();
+    let again = run_benchmark(&cfg, &[("oracle".into(), oracle)], &|| {});
+    for (x, y) in out.iter().zip(&again) {
+        let (x, y) = (x.episode.as_ref().unwrap(), y.episode.as_ref().unwrap());
+        assert_eq!(
+            (x.scene.joints.clone(), x.scene.base_yaw),
+            (y.scene.joints.clone(), y.scene.base_yaw)
+        );
+        assert_eq!(x.metrics, y.metrics);
+    }
+    let empty = tempfile::tempdir().unwrap();
+    let e = object_rows(empty.path()).unwrap_err().to_string();
+    assert!(e.contains("no NAME/mobility.urdf"), "{e}");
 }

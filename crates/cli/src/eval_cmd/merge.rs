@@ -137,7 +137,7 @@ pub fn run(ctx: &Ctx, a: &MergeArgs) -> Result<()> {
         episodes,
     };
     sort_canonically(&mut report)?;
-    let scenes = report.run.categories.len() * report.run.episodes_per_category as usize;
+    let scenes = report.run.rows().len() * report.run.episodes_per_category as usize;
     let _claim = a
         .out
         .as_deref()
@@ -151,20 +151,23 @@ pub fn run(ctx: &Ctx, a: &MergeArgs) -> Result<()> {
 fn sort_canonically(report: &mut Report) -> Result<()> {
     let scored: Vec<Scored> = report.scored()?;
     let run = &report.run;
+    let rows = run.rows();
     let mut keyed = Vec::with_capacity(scored.len());
     for (o, value) in scored.iter().zip(std::mem::take(&mut report.episodes)) {
-        let c = run.categories.iter().position(|c| *c == o.category);
+        let row = o.row();
+        let name = row.as_ref().map_or("?", |r| r.name()).to_owned();
+        let c = row.and_then(|row| rows.iter().position(|r| *r == row));
         let p = run.policies.iter().position(|p| *p == o.policy);
         let (Some(c), Some(p)) = (c, p) else {
             return Err(usage(format!(
-                "episode {} #{} of policy `{}` is outside the evaluation's categories or policies",
-                o.category, o.index, o.policy
+                "episode {name} #{} of policy `{}` is outside the evaluation's rows or policies",
+                o.index, o.policy
             )));
         };
         if o.index >= run.episodes_per_category {
             return Err(usage(format!(
-                "episode {} #{} is beyond episodes_per_category {}",
-                o.category, o.index, run.episodes_per_category
+                "episode {name} #{} is beyond episodes_per_category {}",
+                o.index, run.episodes_per_category
             )));
         }
         keyed.push(((c, o.index, p), value));
@@ -177,11 +180,11 @@ fn sort_canonically(report: &mut Report) -> Result<()> {
     if let Some((c, k, p)) = twice {
         return Err(usage(format!(
             "episode {} #{k} of policy `{}` appears in more than one shard",
-            run.categories.get(c).map_or("?", |c| c.name()),
+            rows.get(c).map_or("?", |c| c.name()),
             run.policies.get(p).map_or("?", String::as_str)
         )));
     }
-    let expected = run.categories.len() * run.episodes_per_category as usize * run.policies.len();
+    let expected = rows.len() * run.episodes_per_category as usize * run.policies.len();
     if keyed.len() != expected {
         return Err(usage(format!(
             "the shards hold {} episodes; the evaluation has {expected}",

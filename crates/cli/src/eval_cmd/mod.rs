@@ -7,12 +7,12 @@ mod tables;
 
 use crate::{Ctx, usage};
 use anyhow::{Context, Result};
-use report::{Report, RunInfo};
+use report::{ObjectInfo, Report, RunInfo};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use umpnet_eval::Protocol;
-use umpnet_eval::bench::{BenchConfig, PolicyFactory, Shard, run_benchmark};
+use umpnet_eval::bench::{BenchConfig, PolicyFactory, Row, Shard, object_rows, run_benchmark};
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
 use umpnet_sim::physics::PhysicsProfile;
@@ -42,9 +42,15 @@ pub struct EvalArgs {
     /// Comma-separated categories (overrides --split).
     #[arg(long, value_delimiter = ',', value_parser = crate::parse_category)]
     pub categories: Vec<Category>,
-    /// train (held-out instances of training categories), test (test categories) or all.
-    #[arg(long, default_value = "all")]
-    pub split: String,
+    /// train (held-out instances of training categories), test (test categories) or all
+    /// (the default, unless --objects is given alone).
+    #[arg(long)]
+    pub split: Option<String>,
+    /// Also score every DIR/NAME/mobility.urdf, one row per object (NAME), on
+    /// the same protocol; alone, only the objects. `python -m umpnet.objects`
+    /// writes this layout from MJCF files.
+    #[arg(long, value_name = "DIR")]
+    pub objects: Option<PathBuf>,
     #[arg(long, default_value_t = 100)]
     pub episodes_per_category: u32,
     /// Comma-separated policies: random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
@@ -136,28 +142,91 @@ pub fn run(ctx: &Ctx, cmd: &EvalCmd) -> Result<()> {
     }
 }
 
+/// SHA-256 over every file under an object's folder (relative names, sizes
+/// and bytes, in name order).
+fn folder_digest(dir: &Path) -> Result<String> {
+    fn walk(dir: &Path, root: &Path, h: &mut Sha256, depth: usize) -> Result<()> {
+        if depth > 8 {
+            anyhow::bail!("{}: folders nested too deep", dir.display());
+        }
+        let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
+            .with_context(|| format!("reading {}", dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .collect();
+        entries.sort();
+        for p in entries {
+            let meta = std::fs::symlink_metadata(&p)?;
+            if meta.is_dir() {
+                walk(&p, root, h, depth + 1)?;
+            } else if meta.is_file() {
+                let bytes =
+                    std::fs::read(&p).with_context(|| format!("reading {}", p.display()))?;
+                let rel = p
+                    .strip_prefix(root)
+                    .unwrap_or(&p)
+                    .to_string_lossy()
+                    .into_owned();
+                h.update(rel.as_bytes());
+                h.update([0]);
+                h.update((bytes.len() as u64).to_le_bytes());
+                h.update(&bytes);
+            }
+        }
+        Ok(())
+    }
+    let mut h = Sha256::new();
+    walk(dir, dir, &mut h, 0)?;
+    Ok(format!("sha256:{:x}", h.finalize()))
+}
+
 fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
+    let split = match (&a.split, &a.objects) {
+        (Some(s), _) => Some(s.as_str()),
+        (None, Some(_)) => None,
+        (None, None) => Some("all"),
+    };
     let categories: Vec<Category> = if !a.categories.is_empty() {
         a.categories.clone()
     } else {
-        match a.split.as_str() {
-            "train" => Category::ALL
+        match split {
+            None => Vec::new(),
+            Some("train") => Category::ALL
                 .iter()
                 .copied()
                 .filter(|c| c.is_train())
                 .collect(),
-            "test" => Category::ALL
+            Some("test") => Category::ALL
                 .iter()
                 .copied()
                 .filter(|c| !c.is_train())
                 .collect(),
-            "all" => Category::ALL.to_vec(),
-            s => return Err(usage(format!("--split {s}: expected train, test or all"))),
+            Some("all") => Category::ALL.to_vec(),
+            Some(s) => return Err(usage(format!("--split {s}: expected train, test or all"))),
         }
     };
     if a.episodes_per_category == 0 {
         return Err(usage("--episodes-per-category must be at least 1"));
     }
+    let object_rows = match &a.objects {
+        Some(dir) => object_rows(dir).map_err(|e| usage(e.to_string()))?,
+        None => Vec::new(),
+    };
+    let mut objects = Vec::new();
+    for row in &object_rows {
+        if let Row::Object(o) = row {
+            let folder = o.urdf.parent().unwrap_or(Path::new("."));
+            objects.push(ObjectInfo {
+                name: o.name.clone(),
+                urdf: o.urdf.to_string_lossy().into_owned(),
+                sha256: folder_digest(folder)?,
+            });
+        }
+    }
+    let rows: Vec<Row> = categories
+        .iter()
+        .map(|c| Row::Category(*c))
+        .chain(object_rows)
+        .collect();
     let threads = a
         .threads
         .map_or_else(rayon::current_num_threads, usize::from)
@@ -189,7 +258,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     let shard = a.shard.unwrap_or_default();
     let cfg = BenchConfig {
         task: a.task,
-        categories: categories.clone(),
+        rows,
         episodes_per_category: a.episodes_per_category,
         seed: a.seed,
         dataset_seed: 0,
@@ -226,7 +295,10 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     for f in outcomes.iter().filter(|o| o.error.is_some()).take(5) {
         eprintln!(
             "episode failed: {} #{} {}: {}",
-            f.category,
+            f.category
+                .map(|c| c.name().to_owned())
+                .or_else(|| f.object.clone())
+                .unwrap_or_default(),
             f.index,
             f.policy,
             f.error.as_deref().unwrap_or("")
@@ -250,6 +322,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
             policies: names,
             models,
             categories,
+            objects,
         },
         shard,
         wall_seconds: wall,
@@ -278,11 +351,10 @@ fn record(
     per_category: u32,
 ) -> Result<usize> {
     let mut n = 0;
-    for (category, k) in cfg.scenes().into_iter().filter(|(_, k)| *k < per_category) {
+    for (row, k) in cfg.scenes().into_iter().filter(|(_, k)| *k < per_category) {
         for (name, make) in policies {
-            let path = dir.join(format!("{category}_{k}_{name}.rrd"));
-            let mut recorder =
-                crate::rrd::Recorder::create(&path, &format!("{name}: {category} #{k}"))?;
+            let path = dir.join(format!("{row}_{k}_{name}.rrd"));
+            let mut recorder = crate::rrd::Recorder::create(&path, &format!("{name}: {row} #{k}"))?;
             let mut failed: Option<anyhow::Error> = None;
             let mut hook = |h: &umpnet_eval::episode::HookFrame<'_>| {
                 if failed.is_none()
@@ -291,15 +363,19 @@ fn record(
                     failed = Some(e);
                 }
             };
-            let replayed =
-                umpnet_eval::bench::run_one(cfg, name, make, category, k, Some(&mut hook));
+            let replayed = umpnet_eval::bench::run_one(cfg, name, make, row, k, Some(&mut hook));
             if let Some(e) = failed {
                 return Err(e);
             }
             recorder.finish()?;
             let evaluated = outcomes
                 .iter()
-                .find(|o| o.category == category && o.index == k && &o.policy == name)
+                .find(|o| {
+                    o.category == row.category()
+                        && o.object.as_deref() == matches!(row, Row::Object(_)).then(|| row.name())
+                        && o.index == k
+                        && &o.policy == name
+                })
                 .and_then(|o| o.episode.as_ref());
             if let (Ok(ep), Some(evaluated)) = (&replayed, evaluated)
                 && serde_json::to_value(ep)? != serde_json::to_value(evaluated)?

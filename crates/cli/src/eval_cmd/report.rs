@@ -35,6 +35,29 @@ pub struct RunInfo {
     /// Learned policies' packages by policy name: SHA-256 of their files.
     pub models: BTreeMap<String, String>,
     pub categories: Vec<Category>,
+    /// Object files scored as rows (`eval --objects`), after the categories.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub objects: Vec<ObjectInfo>,
+}
+
+/// One object row: its name, its file and the SHA-256 of its folder (shards
+/// that scored different files under one name must not merge).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ObjectInfo {
+    pub name: String,
+    pub urdf: String,
+    pub sha256: String,
+}
+
+impl RunInfo {
+    /// The table's rows in canonical order: categories as listed, then objects.
+    pub fn rows(&self) -> Vec<RowKey> {
+        self.categories
+            .iter()
+            .map(|c| RowKey::Category(*c))
+            .chain(self.objects.iter().map(|o| RowKey::Object(o.name.clone())))
+            .collect()
+    }
 }
 
 /// One evaluation's (or one shard's) episodes, in canonical order.
@@ -49,7 +72,10 @@ pub struct Report {
 /// The part of an episode outcome that the tables read.
 #[derive(serde::Deserialize)]
 pub struct Scored {
-    pub category: Category,
+    #[serde(default)]
+    pub category: Option<Category>,
+    #[serde(default)]
+    pub object: Option<String>,
     pub index: u32,
     pub policy: String,
     pub episode: Option<ScoredEpisode>,
@@ -61,7 +87,17 @@ pub struct ScoredEpisode {
     pub metrics: Metrics,
 }
 
-use super::tables::{self, Cells, metrics_of};
+use super::tables::{self, Cells, RowKey, metrics_of};
+
+impl Scored {
+    pub fn row(&self) -> Option<RowKey> {
+        match (&self.category, &self.object) {
+            (Some(c), None) => Some(RowKey::Category(*c)),
+            (None, Some(o)) => Some(RowKey::Object(o.clone())),
+            _ => None,
+        }
+    }
+}
 
 fn value(m: &Metrics, metric: &str) -> Option<f64> {
     Some(match metric {
@@ -79,8 +115,12 @@ impl Report {
             .iter()
             .enumerate()
             .map(|(i, e)| {
-                Scored::deserialize(e)
-                    .with_context(|| format!("episode {i}: not an episode outcome"))
+                let s = Scored::deserialize(e)
+                    .with_context(|| format!("episode {i}: not an episode outcome"))?;
+                if s.row().is_none() {
+                    bail!("episode {i}: expected one of `category` or `object`");
+                }
+                Ok(s)
             })
             .collect()
     }
@@ -88,11 +128,13 @@ impl Report {
     fn cells(&self, scored: &[Scored]) -> Cells {
         let mut cells = Cells::new();
         for o in scored {
-            let Some(ep) = &o.episode else { continue };
+            let (Some(ep), Some(row)) = (&o.episode, o.row()) else {
+                continue;
+            };
             for (m, _) in metrics_of(self.run.task) {
                 if let Some(v) = value(&ep.metrics, m) {
                     cells
-                        .entry((o.policy.clone(), o.category, m))
+                        .entry((o.policy.clone(), row.clone(), m))
                         .or_default()
                         .push(v);
                 }
@@ -119,7 +161,8 @@ impl Report {
                 .iter()
                 .map(|((p, c, m), v)| {
                     let st = tables::stat(m, v);
-                    serde_json::json!({"policy": p, "category": c.name(), "metric": m, "mean": st.mean,
+                    let key = if matches!(c, RowKey::Object(_)) { "object" } else { "category" };
+                    serde_json::json!({"policy": p, (key): c.name(), "metric": m, "mean": st.mean,
                         "ci95": (st.hi - st.lo) / 2.0, "ci_low": st.lo, "ci_high": st.hi, "n": st.n})
                 })
                 .collect(),
@@ -134,7 +177,7 @@ impl Report {
         tables::screen(
             self.run.task,
             &self.run.policies,
-            &self.run.categories,
+            &self.run.rows(),
             &self.cells(scored),
         )
     }
@@ -164,8 +207,8 @@ impl Report {
             return Ok(vec!["results.json"]);
         }
         let cells = self.cells(scored);
-        let (task, policies, categories) =
-            (self.run.task, &self.run.policies, &self.run.categories);
+        let rows = self.run.rows();
+        let (task, policies, categories) = (self.run.task, &self.run.policies, &rows);
         let files: [(&'static str, String); 4] = [
             (
                 "results.csv",

@@ -7,8 +7,34 @@ use umpnet_eval::bench::{mean_ci, wilson};
 use umpnet_sim::objects::Category;
 use umpnet_sim::scene::Task;
 
-/// (policy, category, metric) -> one value per episode.
-pub type Cells = BTreeMap<(String, Category, &'static str), Vec<f64>>;
+/// A table row: a category, or an object file (`eval --objects`). Categories
+/// order as before objects existed, so their files stay byte for byte the same.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum RowKey {
+    Category(Category),
+    Object(String),
+}
+
+impl RowKey {
+    pub fn name(&self) -> &str {
+        match self {
+            RowKey::Category(c) => c.name(),
+            RowKey::Object(o) => o,
+        }
+    }
+
+    /// The group the row is averaged in: `train`, `test` or `objects`.
+    pub fn split(&self) -> &'static str {
+        match self {
+            RowKey::Category(c) if c.is_train() => "train",
+            RowKey::Category(_) => "test",
+            RowKey::Object(_) => "objects",
+        }
+    }
+}
+
+/// (policy, row, metric) -> one value per episode.
+pub type Cells = BTreeMap<(String, RowKey, &'static str), Vec<f64>>;
 
 pub fn metrics_of(task: Task) -> &'static [(&'static str, &'static str)] {
     match task {
@@ -52,27 +78,25 @@ pub fn stat(metric: &str, values: &[f64]) -> Stat {
     }
 }
 
-const SPLITS: [(&str, bool); 2] = [
-    ("train categories (held-out instances)", true),
-    ("test categories", false),
+const SPLITS: [(&str, &str); 3] = [
+    ("train categories (held-out instances)", "train"),
+    ("test categories", "test"),
+    ("objects", "objects"),
 ];
 
-/// The categories of one split, in the evaluation's order.
-fn of_split(categories: &[Category], train: bool) -> Vec<&Category> {
-    categories
-        .iter()
-        .filter(|c| c.is_train() == train)
-        .collect()
+/// The rows of one split, in the evaluation's order.
+fn of_split<'a>(rows: &'a [RowKey], split: &str) -> Vec<&'a RowKey> {
+    rows.iter().filter(|r| r.split() == split).collect()
 }
 
-fn split_name(c: Category) -> &'static str {
-    if c.is_train() { "train" } else { "test" }
+fn cell<'a>(cells: &'a Cells, p: &str, row: &RowKey, metric: &'static str) -> Option<&'a Vec<f64>> {
+    cells.get(&(p.to_string(), row.clone(), metric))
 }
 
-fn mean_of_means(cells: &Cells, p: &str, cats: &[&Category], metric: &str) -> Option<f64> {
+fn mean_of_means(cells: &Cells, p: &str, cats: &[&RowKey], metric: &'static str) -> Option<f64> {
     let means: Vec<f64> = cats
         .iter()
-        .filter_map(|c| cells.get(&(p.to_string(), **c, metric)))
+        .filter_map(|c| cell(cells, p, c, metric))
         .map(|v| mean_ci(v).0)
         .collect();
     (!means.is_empty()).then(|| means.iter().sum::<f64>() / means.len() as f64)
@@ -80,7 +104,7 @@ fn mean_of_means(cells: &Cells, p: &str, cats: &[&Category], metric: &str) -> Op
 
 /// The screen table: per metric and split, a row of means per policy with
 /// the 95% interval's half-width below it.
-pub fn screen(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {
+pub fn screen(task: Task, policies: &[String], categories: &[RowKey], cells: &Cells) -> String {
     let mut s = String::from("(oracle: the ceiling, privileged policy under the same protocol)\n");
     let width = policies
         .iter()
@@ -90,12 +114,12 @@ pub fn screen(task: Task, policies: &[String], categories: &[Category], cells: &
         .max(10);
     for (metric, title) in metrics_of(task) {
         let _ = writeln!(s, "\n{title}; below each row, +- the 95% interval");
-        for (split_label, train) in SPLITS {
-            let cats = of_split(categories, train);
+        for (split_label, split) in SPLITS {
+            let cats = of_split(categories, split);
             if cats.is_empty() {
                 continue;
             }
-            let col = |c: &Category| c.name().len().max(6);
+            let col = |c: &RowKey| c.name().chars().count().max(6);
             let _ = write!(s, "  {split_label}\n  {:<width$}", "method");
             for c in &cats {
                 let _ = write!(s, " {:>w$}", c.name(), w = col(c));
@@ -105,7 +129,7 @@ pub fn screen(task: Task, policies: &[String], categories: &[Category], cells: &
                 let mut means = format!("  {p:<width$}");
                 let mut halves = format!("  {:<width$}", "");
                 for c in &cats {
-                    match cells.get(&(p.clone(), **c, *metric)) {
+                    match cell(cells, p, c, metric) {
                         Some(v) => {
                             let st = stat(metric, v);
                             let _ = write!(means, " {:>w$.2}", st.mean, w = col(c));
@@ -128,7 +152,7 @@ pub fn screen(task: Task, policies: &[String], categories: &[Category], cells: &
 
 /// results.csv: one row per cell with its interval, then one average row per
 /// (policy, split, metric): the mean over that split's categories.
-pub fn csv(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {
+pub fn csv(task: Task, policies: &[String], categories: &[RowKey], cells: &Cells) -> String {
     let mut out = String::from("policy,category,split,metric,mean,ci95,ci_low,ci_high,n\n");
     for ((p, c, m), v) in cells {
         let st = stat(m, v);
@@ -136,7 +160,7 @@ pub fn csv(task: Task, policies: &[String], categories: &[Category], cells: &Cel
             out,
             "{p},{},{},{m},{:.6},{:.6},{:.6},{:.6},{}",
             c.name(),
-            split_name(*c),
+            c.split(),
             st.mean,
             (st.hi - st.lo) / 2.0,
             st.lo,
@@ -146,15 +170,14 @@ pub fn csv(task: Task, policies: &[String], categories: &[Category], cells: &Cel
     }
     for p in policies {
         for (metric, _) in metrics_of(task) {
-            for (_, train) in SPLITS {
-                let cats = of_split(categories, train);
+            for (_, split) in SPLITS {
+                let cats = of_split(categories, split);
                 let n: usize = cats
                     .iter()
-                    .filter_map(|c| cells.get(&(p.clone(), **c, *metric)))
+                    .filter_map(|c| cell(cells, p, c, metric))
                     .map(Vec::len)
                     .sum();
                 if let Some(avg) = mean_of_means(cells, p, &cats, metric) {
-                    let split = if train { "train" } else { "test" };
                     let _ = writeln!(out, "{p},average,{split},{metric},{avg:.6},,,,{n}");
                 }
             }
@@ -165,21 +188,26 @@ pub fn csv(task: Task, policies: &[String], categories: &[Category], cells: &Cel
 
 /// results.md: per metric and split, categories as rows and policies as
 /// columns, each cell "mean [low, high]".
-pub fn markdown(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {
+pub fn markdown(task: Task, policies: &[String], categories: &[RowKey], cells: &Cells) -> String {
     let mut s = String::new();
     for (metric, title) in metrics_of(task) {
-        for (split_label, train) in SPLITS {
-            let cats = of_split(categories, train);
+        for (split_label, split) in SPLITS {
+            let cats = of_split(categories, split);
             if cats.is_empty() {
                 continue;
             }
             let _ = writeln!(s, "### {title}, {split_label}\n");
-            let _ = writeln!(s, "| category | {} |", policies.join(" | "));
+            let head = if split == "objects" {
+                "object"
+            } else {
+                "category"
+            };
+            let _ = writeln!(s, "| {head} | {} |", policies.join(" | "));
             let _ = writeln!(s, "|---|{}", "---|".repeat(policies.len()));
             for c in &cats {
                 let _ = write!(s, "| {} |", c.name());
                 for p in policies {
-                    match cells.get(&(p.clone(), **c, *metric)) {
+                    match cell(cells, p, c, metric) {
                         Some(v) => {
                             let st = stat(metric, v);
                             let _ = write!(s, " {:.2} [{:.2}, {:.2}] |", st.mean, st.lo, st.hi);
@@ -214,11 +242,11 @@ fn tex_escape(s: &str) -> String {
 
 /// results.tex: the paper's layout (methods as rows, categories as columns,
 /// then the average), means only, one tabular per metric and split.
-pub fn latex(task: Task, policies: &[String], categories: &[Category], cells: &Cells) -> String {
+pub fn latex(task: Task, policies: &[String], categories: &[RowKey], cells: &Cells) -> String {
     let mut s = String::from("% umpnet eval: means over episodes; intervals in results.md/csv\n");
     for (metric, title) in metrics_of(task) {
-        for (split_label, train) in SPLITS {
-            let cats = of_split(categories, train);
+        for (split_label, split) in SPLITS {
+            let cats = of_split(categories, split);
             if cats.is_empty() {
                 continue;
             }
@@ -226,13 +254,13 @@ pub fn latex(task: Task, policies: &[String], categories: &[Category], cells: &C
             let _ = writeln!(s, "\\begin{{tabular}}{{l{}c}}", "c".repeat(cats.len()));
             s.push_str("\\hline\nmethod");
             for c in &cats {
-                let _ = write!(s, " & {}", c.name());
+                let _ = write!(s, " & {}", tex_escape(c.name()));
             }
             s.push_str(" & avg \\\\\n\\hline\n");
             for p in policies {
                 s.push_str(&tex_escape(p));
                 for c in &cats {
-                    match cells.get(&(p.clone(), **c, *metric)) {
+                    match cell(cells, p, c, metric) {
                         Some(v) => {
                             let _ = write!(s, " & {:.2}", mean_ci(v).0);
                         }

@@ -1,0 +1,625 @@
+"""Objects made elsewhere, brought into the PartNet-Mobility layout the simulator loads.
+
+    python -m umpnet.objects import-mjcf FILE.xml --out DIR [--name NAME]
+    python -m umpnet.objects metaworld --out data/external
+
+MJCF (MuJoCo's format: Meta-World, MuJoCo Menagerie, robosuite, dm_control)
+is compiled by the official ``mujoco`` package, so defaults, classes,
+includes, ``<compiler>`` settings, frames, orientations and mesh scales are
+resolved by MuJoCo itself. The importer reads the compiled model at its
+reference configuration (``qpos0``) and writes ``DIR/NAME/mobility.urdf``,
+``textured_objs/*.obj`` with ``.mtl`` colours and ``object_meta_info.json``.
+
+The mapping (docs/objects.md):
+- hinge -> revolute (continuous when unlimited), slide -> prismatic, with
+  MuJoCo's ranges measured from ``qpos0``; a body with several joints
+  becomes a chain of helper links, as PartNet-Mobility writes them;
+- free and ball joints, and bodies without joints, are fixed to their parent;
+- top-level bodies whose subtree has no hinge or slide (tables, floors,
+  walls, free objects) and planes are scenery and are left out;
+- visual geoms (groups 0-2, not transparent) become meshes; collision-only
+  geoms (groups 3-5) are skipped unless a part has nothing else to show.
+
+Needs the ``mjcf`` extra (``pip install umpnet[mjcf]``); ``metaworld`` also
+needs the ``metaworld`` extra.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import math
+import os
+import re
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+# MuJoCo's enums, by value (stable across 2.x-4.x).
+_FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
+_PLANE, _HFIELD, _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = 0, 1, 2, 3, 4, 5, 6, 7
+# MuJoCo's default geom rgba: a geom with this colour and a material shows the material's.
+_DEFAULT_RGBA = np.array([0.5, 0.5, 0.5, 1.0])
+# The viewer draws groups 0-2 by default; files put collision-only geoms in 3-5.
+_VISUAL_GROUPS = range(0, 3)
+# Joint dynamics of the generated objects (crates/sim/src/objects/builder.rs),
+# so imported objects meet the same physics as the benchmark's own.
+BENCHMARK_DAMPING = 2.0
+BENCHMARK_FRICTION = 0.5
+# Largest extent (m) of an imported object in the scene: the median largest
+# extent of the generated objects at scene scale (docs/objects.md).
+DEFAULT_SIZE = 0.8
+# What the loader accepts (crates/sim/src/urdf.rs): limits within this many m or rad.
+_MAX_LIMIT = 1000.0
+_F32_MAX = float(np.finfo(np.float32).max)
+_MAX_LINKS = 64
+
+
+class ImportFailed(Exception):
+    """An MJCF file cannot become an object; the message names the file and why."""
+
+
+@dataclass
+class _Link:
+    name: str
+    origin: np.ndarray  # frame origin in the object frame (all link frames share its axes)
+    visuals: list = field(default_factory=list)  # (vertices in the object frame, faces, rgb)
+
+
+@dataclass
+class _Joint:
+    name: str
+    kind: str
+    parent: int
+    child: int
+    axis: np.ndarray
+    lower: float
+    upper: float
+    damping: float
+    friction: float
+
+
+@dataclass
+class Imported:
+    """What one import wrote, for the caller's report."""
+
+    name: str
+    urdf: Path
+    joints: list[tuple[str, str, float, float]]
+    links: int
+    dropped: list[str]
+    warnings: list[str]
+    scale: float
+
+
+def _mujoco():
+    try:
+        import mujoco
+    except ImportError as e:
+        raise ImportFailed(
+            "the MJCF importer needs MuJoCo: pip install 'umpnet[mjcf]' (mujoco==3.3.0)"
+        ) from e
+    return mujoco
+
+
+def _root_tag(path: Path) -> str:
+    try:
+        for _, elem in ET.iterparse(path, events=("start",)):
+            return elem.tag
+    except ET.ParseError as e:
+        raise ImportFailed(f"{path}: not well-formed XML: {e}") from e
+    return ""
+
+
+def compile_mjcf(path: Path):
+    """The compiled MjModel of ``path``. A ``<mujocoinclude>`` fragment is
+    wrapped in a ``<mujoco>`` root beside it (so its relative paths resolve)."""
+    mujoco = _mujoco()
+    if not path.is_file():
+        raise ImportFailed(f"{path}: no such file")
+    tag = _root_tag(path)
+    if tag != "mujocoinclude":
+        try:
+            return mujoco.MjModel.from_xml_path(str(path))
+        except Exception as e:  # MuJoCo raises ValueError; keep its words
+            raise ImportFailed(f"{path}: MuJoCo cannot compile it: {_one_line(e)}") from e
+    errors = []
+    for body in ("{}", "<worldbody>{}</worldbody>"):
+        include = body.format(f'<include file="{path.name}"/>')
+        fd, wrapper = tempfile.mkstemp(prefix=".umpnet-wrap-", suffix=".xml", dir=path.parent)
+        try:
+            with os.fdopen(fd, "w") as f:
+                f.write(f'<mujoco model="{path.stem}">{include}</mujoco>\n')
+            return mujoco.MjModel.from_xml_path(wrapper)
+        except Exception as e:
+            errors.append(_one_line(e))
+        finally:
+            os.unlink(wrapper)
+    raise ImportFailed(
+        f"{path}: a <mujocoinclude> fragment that MuJoCo cannot compile inside a <mujoco> root: "
+        + errors[-1]
+    )
+
+
+def _one_line(e: Exception) -> str:
+    return " ".join(str(e).split())
+
+
+# --- geometry -----------------------------------------------------------------
+
+
+def _lathe(profile: list[tuple[float, float]], segments: int = 24):
+    """A surface of revolution about z from (radius, z) points, bottom to top;
+    a zero radius closes the surface there."""
+    angles = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
+    verts, rings = [], []
+    for r, z in profile:
+        if r <= 1e-12:
+            rings.append([len(verts)])
+            verts.append((0.0, 0.0, z))
+        else:
+            start = len(verts)
+            verts.extend((r * math.cos(a), r * math.sin(a), z) for a in angles)
+            rings.append(list(range(start, start + segments)))
+    faces = []
+    for lo, hi in zip(rings, rings[1:]):
+        for k in range(segments):
+            a0, a1 = lo[k % len(lo)], lo[(k + 1) % len(lo)]
+            b0, b1 = hi[k % len(hi)], hi[(k + 1) % len(hi)]
+            if len(lo) > 1:
+                faces.append((a0, a1, b1 if len(hi) > 1 else b0))
+            if len(hi) > 1:
+                faces.append((a0 if len(lo) > 1 else a0, b1, b0))
+    return np.array(verts, dtype=np.float64), np.array(faces, dtype=np.int64)
+
+
+def _sphere_profile(radius: float, z_low: float, z_high: float, rings: int = 12):
+    """Bottom hemisphere centred at z_low, top hemisphere at z_high."""
+    half = rings // 2
+    lower = [(-math.pi / 2 + math.pi / 2 * k / half) for k in range(half + 1)]
+    upper = [(math.pi / 2 * k / half) for k in range(half + 1)]
+    prof = [(radius * math.cos(t), z_low + radius * math.sin(t)) for t in lower]
+    top = [(radius * math.cos(t), z_high + radius * math.sin(t)) for t in upper]
+    if z_high == z_low:
+        top = top[1:]
+    return prof + top
+
+
+def _box(half):
+    x, y, z = half
+    v = np.array(
+        [[sx * x, sy * y, sz * z] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
+        dtype=np.float64,
+    )
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    f = [t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))]
+    return v, np.array(f, dtype=np.int64)
+
+
+def _geom_mesh(m, g: int):
+    """Vertices (geom frame) and faces of geom g, or None for a shape with no surface to draw."""
+    t, size = int(m.geom_type[g]), m.geom_size[g]
+    if t == _MESH:
+        mid = int(m.geom_dataid[g])
+        va, vn = int(m.mesh_vertadr[mid]), int(m.mesh_vertnum[mid])
+        fa, fn = int(m.mesh_faceadr[mid]), int(m.mesh_facenum[mid])
+        return np.array(m.mesh_vert[va : va + vn], dtype=np.float64), np.array(
+            m.mesh_face[fa : fa + fn], dtype=np.int64
+        )
+    if t == _BOX:
+        return _box(size[:3])
+    if t == _SPHERE:
+        return _lathe(_sphere_profile(size[0], 0.0, 0.0))
+    if t == _ELLIPSOID:
+        v, f = _lathe(_sphere_profile(1.0, 0.0, 0.0))
+        return v * np.asarray(size[:3]), f
+    if t == _CAPSULE:
+        return _lathe(_sphere_profile(size[0], -size[1], size[1]))
+    if t == _CYLINDER:
+        r, h = size[0], size[1]
+        return _lathe([(0.0, -h), (r, -h), (r, h), (0.0, h)])
+    return None  # plane, height field, SDF: scenery or nothing a camera sees
+
+
+def _texture_mean(m, tex: int) -> np.ndarray | None:
+    """The mean colour of a texture (the renderer has no textures; this is their tint)."""
+    if tex < 0 or tex >= m.ntex:
+        return None
+    n = int(m.tex_nchannel[tex]) if hasattr(m, "tex_nchannel") else 3
+    adr, h, w = int(m.tex_adr[tex]), int(m.tex_height[tex]), int(m.tex_width[tex])
+    data = np.asarray(m.tex_data[adr : adr + h * w * n], dtype=np.float64).reshape(-1, n)
+    if len(data) == 0 or n < 3:
+        return None
+    return data[:, :3].mean(axis=0) / 255.0
+
+
+def _geom_rgba(m, g: int) -> np.ndarray:
+    """What MuJoCo draws: the geom's rgba, or its material's when the geom keeps
+    the default, tinted by the material's texture."""
+    rgba = np.array(m.geom_rgba[g], dtype=np.float64)
+    mat = int(m.geom_matid[g])
+    if mat >= 0 and np.allclose(rgba, _DEFAULT_RGBA):
+        rgba = np.array(m.mat_rgba[mat], dtype=np.float64)
+        texids = np.atleast_1d(np.asarray(m.mat_texid[mat]))
+        tex = next((int(t) for t in texids if int(t) >= 0), -1)
+        tint = _texture_mean(m, tex)
+        if tint is not None:
+            rgba[:3] *= tint
+    return np.clip(rgba, 0.0, 1.0)
+
+
+# --- the model ----------------------------------------------------------------
+
+
+def _name(m, kind: str, i: int) -> str:
+    mujoco = _mujoco()
+    obj = {"body": mujoco.mjtObj.mjOBJ_BODY, "joint": mujoco.mjtObj.mjOBJ_JOINT}[kind]
+    return mujoco.mj_id2name(m, obj, i) or f"{kind}{i}"
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", name) or "x"
+
+
+def _check_number(path: Path, what: str, values) -> None:
+    flat = np.asarray(values, dtype=np.float64).ravel()
+    bad = flat[~(np.isfinite(flat) & (np.abs(flat) <= _F32_MAX))]
+    if bad.size:
+        raise ImportFailed(f"{path}: {what} must be finite within f32 range, found {bad[0]!r}")
+
+
+def build(path: Path, dynamics: str = "benchmark"):
+    """The object of an MJCF file as links and joints in the object frame at qpos0."""
+    mujoco = _mujoco()
+    m = compile_mjcf(path)
+    d = mujoco.MjData(m)
+    d.qpos[:] = m.qpos0
+    mujoco.mj_kinematics(m, d)
+
+    movable = [j for j in range(m.njnt) if int(m.jnt_type[j]) in (_SLIDE, _HINGE)]
+    if not movable:
+        kinds = sorted({("free", "ball", "slide", "hinge")[int(t)] for t in m.jnt_type})
+        found = f"only {', '.join(kinds)} joints" if kinds else "no joints"
+        raise ImportFailed(
+            f"{path}: no hinge or slide joint ({found}); an articulated object needs one"
+        )
+    articulated_roots = {int(m.body_rootid[int(m.jnt_bodyid[j])]) for j in movable}
+
+    links = [_Link("base", np.zeros(3))]
+    joints: list[_Joint] = []
+    owner = {0: 0}  # body -> link that carries it
+    dropped, warnings = [], []
+    for b in range(1, m.nbody):
+        if int(m.body_rootid[b]) not in articulated_roots:
+            if int(m.body_parentid[b]) == 0:
+                dropped.append(_name(m, "body", b))
+            continue
+        cur = owner[int(m.body_parentid[b])]
+        adr, num = int(m.body_jntadr[b]), int(m.body_jntnum[b])
+        body_joints = [j for j in range(adr, adr + num) if int(m.jnt_type[j]) in (_SLIDE, _HINGE)]
+        for k, j in enumerate(body_joints):
+            jname = _name(m, "joint", j)
+            anchor = np.array(d.xanchor[j], dtype=np.float64)
+            axis = np.array(d.xaxis[j], dtype=np.float64)
+            _check_number(path, f"joint `{jname}` position", anchor)
+            _check_number(path, f"joint `{jname}` axis", axis)
+            prismatic = int(m.jnt_type[j]) == _SLIDE
+            q0 = float(m.qpos0[int(m.jnt_qposadr[j])])
+            lo, hi = (float(v) - q0 for v in m.jnt_range[j])
+            limited = bool(m.jnt_limited[j]) and lo < hi
+            if limited and max(abs(lo), abs(hi)) > _MAX_LIMIT:
+                unit = "m" if prismatic else "rad"
+                raise ImportFailed(
+                    f"{path}: joint `{jname}` range [{lo:g}, {hi:g}] {unit} is beyond "
+                    f"±{_MAX_LIMIT:g}; no object moves that far"
+                )
+            if prismatic and not limited:
+                warnings.append(f"slide `{jname}` has no range: fixed")
+                continue
+            kind = ("prismatic" if prismatic else "revolute") if limited else "continuous"
+            if float(m.jnt_stiffness[j]) > 0:
+                warnings.append(f"joint `{jname}`: its spring (stiffness) is not simulated")
+            dof = int(m.jnt_dofadr[j])
+            if dynamics == "file":
+                damping, friction = float(m.dof_damping[dof]), float(m.dof_frictionloss[dof])
+            else:
+                damping, friction = BENCHMARK_DAMPING, BENCHMARK_FRICTION
+            last = k == len(body_joints) - 1
+            lname = _safe(_name(m, "body", b)) if last else f"{_safe(_name(m, 'body', b))}_{k}"
+            links.append(_Link(lname, anchor))
+            child = len(links) - 1
+            joints.append(
+                _Joint(_safe(jname), kind, cur, child, axis, lo, hi, damping, friction)
+            )
+            cur = child
+        owner[b] = cur
+    if len(links) > _MAX_LINKS:
+        raise ImportFailed(
+            f"{path}: {len(links)} links after import; an object may have at most {_MAX_LINKS}"
+        )
+
+    # Geometry: what a viewer draws, by the link that carries its body.
+    shown: dict[int, list[int]] = {}
+    hidden: dict[int, list[int]] = {}
+    for g in range(m.ngeom):
+        b = int(m.geom_bodyid[g])
+        if b not in owner:
+            continue
+        if b == 0 and int(m.geom_type[g]) in (_PLANE, _HFIELD):
+            continue
+        link = owner[b]
+        visible = int(m.geom_group[g]) in _VISUAL_GROUPS and _geom_rgba(m, g)[3] > 0.0
+        (shown if visible else hidden).setdefault(link, []).append(g)
+    for link in range(len(links)):
+        geoms = shown.get(link) or hidden.get(link, [])
+        if link in hidden and link not in shown and link > 0:
+            warnings.append(f"link `{links[link].name}` has only collision geoms: drawn from those")
+        for g in geoms:
+            mesh = _geom_mesh(m, g)
+            if mesh is None or len(mesh[1]) == 0:
+                continue
+            v, f = mesh
+            rot = np.array(d.geom_xmat[g], dtype=np.float64).reshape(3, 3)
+            v_in_object = v @ rot.T + np.array(d.geom_xpos[g], dtype=np.float64)
+            _check_number(path, f"geom {g} vertices", v_in_object)
+            links[link].visuals.append((v_in_object, f, _geom_rgba(m, g)[:3]))
+    return links, joints, dropped, warnings
+
+
+def _bounds(links: list[_Link]):
+    pts = [v for link in links for (v, _, _) in link.visuals]
+    if not pts:
+        return None
+    allp = np.concatenate(pts)
+    return allp.min(axis=0), allp.max(axis=0)
+
+
+def _write_obj(path: Path, verts: np.ndarray, faces: np.ndarray, rgb, material: str) -> None:
+    mtl = path.with_suffix(".mtl")
+    mtl.write_text(f"newmtl {material}\nKd {rgb[0]:.4f} {rgb[1]:.4f} {rgb[2]:.4f}\n")
+    lines = [f"mtllib {mtl.name}", f"usemtl {material}"]
+    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in verts]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _inertial(link: _Link) -> str:
+    """1 kg with the inertia of its geometry's bounding box at the box's centre:
+    the convention of the generated objects (PyBullet's mass for PartNet's
+    inertia-less links), so imported parts weigh what the benchmark's do."""
+    b = _bounds([link])
+    lo, hi = b if b else (link.origin - 0.025, link.origin + 0.025)
+    size = np.maximum(hi - lo, 0.005)
+    com = (lo + hi) / 2 - link.origin
+    sx, sy, sz = size
+    ix, iy, iz = (sy**2 + sz**2) / 12, (sx**2 + sz**2) / 12, (sx**2 + sy**2) / 12
+    return (
+        f'    <inertial>\n      <origin xyz="{com[0]:.6f} {com[1]:.6f} {com[2]:.6f}" rpy="0 0 0"/>\n'
+        f'      <mass value="1"/>\n      <inertia ixx="{ix:.8f}" ixy="0" ixz="0" iyy="{iy:.8f}" '
+        f'iyz="0" izz="{iz:.8f}"/>\n    </inertial>\n'
+    )
+
+
+def import_mjcf(
+    path: Path,
+    out: Path,
+    name: str | None = None,
+    size: float = DEFAULT_SIZE,
+    yaw_deg: float = 0.0,
+    dynamics: str = "benchmark",
+    force: bool = False,
+) -> Imported:
+    """Imports one MJCF file to ``out/NAME`` (NAME: the file's stem by default)."""
+    path = Path(path)
+    name = _safe(name or path.stem)
+    if not (math.isfinite(size) and 0.01 <= size <= 100.0):
+        raise ImportFailed(f"--size {size}: expected metres in [0.01, 100]")
+    if not (math.isfinite(yaw_deg) and -360.0 <= yaw_deg <= 360.0):
+        raise ImportFailed(f"--yaw {yaw_deg}: expected degrees in [-360, 360]")
+    links, joints, dropped, warnings = build(path, dynamics)
+    bounds = _bounds(links)
+    if bounds is None:
+        raise ImportFailed(f"{path}: no visible geometry on the articulated bodies")
+    lo, hi = bounds
+    extent = float((hi - lo).max())
+    if not extent > 0:
+        raise ImportFailed(f"{path}: the object's geometry has no extent")
+    if not any(links[j.child].visuals for j in joints) and not any(
+        links[c].visuals for c in range(1, len(links))
+    ):
+        warnings.append("no moving part has visible geometry")
+    # The object frame: centred in x and y on the floor (z = 0 at its lowest point).
+    centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    links[0].origin = centre
+
+    dest = Path(out) / name
+    if dest.exists() and not force:
+        raise ImportFailed(f"{dest} exists; pass --force to replace it")
+    objs = dest / "textured_objs"
+    objs.mkdir(parents=True, exist_ok=True)
+    for stale in objs.glob("original-*"):
+        stale.unlink()
+
+    xml = [f'<?xml version="1.0"?>\n<robot name="{name}">']
+    k = 0
+    for link in links:
+        parts = [f'  <link name="{link.name}">\n', _inertial(link)]
+        for verts, faces, rgb in link.visuals:
+            file = f"textured_objs/original-{k}.obj"
+            _write_obj(dest / file, verts - link.origin, faces, rgb, f"m{k}")
+            geom = f'<geometry><mesh filename="{file}"/></geometry>'
+            parts.append(
+                f'    <visual>\n      <origin xyz="0 0 0" rpy="0 0 0"/>\n      {geom}\n    </visual>\n'
+                f'    <collision>\n      <origin xyz="0 0 0" rpy="0 0 0"/>\n      {geom}\n'
+                f"    </collision>\n"
+            )
+            k += 1
+        parts.append("  </link>")
+        xml.append("".join(parts))
+    for j in joints:
+        o = links[j.child].origin - links[j.parent].origin
+        limit = (
+            f'    <limit lower="{j.lower:.6f}" upper="{j.upper:.6f}" effort="100" velocity="1"/>\n'
+            if j.kind != "continuous"
+            else ""
+        )
+        xml.append(
+            f'  <joint name="{j.name}" type="{j.kind}">\n'
+            f'    <origin xyz="{o[0]:.6f} {o[1]:.6f} {o[2]:.6f}" rpy="0 0 0"/>\n'
+            f'    <axis xyz="{j.axis[0]:.6f} {j.axis[1]:.6f} {j.axis[2]:.6f}"/>\n'
+            f'    <parent link="{links[j.parent].name}"/>\n    <child link="{links[j.child].name}"/>\n'
+            f"{limit}"
+            f'    <dynamics damping="{j.damping:g}" friction="{j.friction:g}"/>\n  </joint>'
+        )
+    xml.append("</robot>\n")
+    urdf = dest / "mobility.urdf"
+    urdf.write_text("\n".join(xml))
+
+    scale = size / extent
+    half = math.radians(yaw_deg) / 2
+    meta = {
+        "orientation": [0.0, 0.0, math.sin(half), math.cos(half)],
+        "offset_z": 0.0,
+        "scale": scale,
+        "moveable_link": {},
+        "source": {"format": "mjcf", "file": str(path), "importer": "umpnet.objects"},
+    }
+    (dest / "object_meta_info.json").write_text(json.dumps(meta, indent=2) + "\n")
+    _check_loads(urdf, scale)
+    return Imported(
+        name=name,
+        urdf=urdf,
+        joints=[(j.name, j.kind, j.lower, j.upper) for j in joints],
+        links=len(links),
+        dropped=dropped,
+        warnings=warnings,
+        scale=scale,
+    )
+
+
+def _check_loads(urdf: Path, scale: float) -> None:
+    """The written object must pass the simulator's own loader checks."""
+    try:
+        from ._umpnet import Articulation
+    except ImportError:  # the pure-Python parts alone (no native module built)
+        return
+    try:
+        Articulation(str(urdf), scale=scale)
+    except Exception as e:
+        raise ImportFailed(f"{urdf}: written, but the simulator refuses it: {_one_line(e)}") from e
+
+
+# --- Meta-World -----------------------------------------------------------------
+
+
+def metaworld_objects_dir() -> Path:
+    spec = importlib.util.find_spec("metaworld")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportFailed(
+            "the metaworld package is not installed: pip install 'umpnet[metaworld]'"
+        )
+    return Path(next(iter(spec.submodule_search_locations))) / "assets" / "objects"
+
+
+def import_folder(src: Path, out: Path, **kw) -> tuple[list[Imported], list[tuple[str, str]]]:
+    """Every ``*.xml`` directly in ``src`` that compiles to an articulated object."""
+    done, skipped = [], []
+    for f in sorted(src.glob("*.xml")):
+        try:
+            done.append(import_mjcf(f, out, **kw))
+        except ImportFailed as e:
+            skipped.append((f.name, str(e).removeprefix(f"{f}: ")))
+    return done, skipped
+
+
+def _report(imported: list[Imported], skipped, as_json: bool) -> None:
+    if as_json:
+        print(
+            json.dumps(
+                {
+                    "imported": [
+                        {
+                            "name": i.name,
+                            "urdf": str(i.urdf),
+                            "joints": [
+                                {"name": n, "type": k, "lower": lo, "upper": hi}
+                                for n, k, lo, hi in i.joints
+                            ],
+                            "links": i.links,
+                            "scale": i.scale,
+                            "dropped": i.dropped,
+                            "warnings": i.warnings,
+                        }
+                        for i in imported
+                    ],
+                    "skipped": [{"file": f, "why": why} for f, why in skipped],
+                }
+            )
+        )
+        return
+    for i in imported:
+        kinds = ", ".join(f"{k} {n} [{lo:.3g}, {hi:.3g}]" for n, k, lo, hi in i.joints)
+        print(f"{i.name}: {i.links} links; {kinds}; scale {i.scale:.3f} -> {i.urdf}")
+        if i.dropped:
+            print(f"  left out as scenery: {', '.join(i.dropped)}")
+        for w in i.warnings:
+            print(f"  warning: {w}")
+    for f, why in skipped:
+        print(f"skipped {f}: {why}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m umpnet.objects", description=__doc__.split("\n")[0])
+    sub = p.add_subparsers(dest="command", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--out", type=Path, required=True, help="folder to write NAME/ into")
+    common.add_argument(
+        "--size",
+        type=float,
+        default=DEFAULT_SIZE,
+        help=f"largest extent in the scene, metres (default {DEFAULT_SIZE}, as generated objects)",
+    )
+    common.add_argument(
+        "--dynamics",
+        choices=["benchmark", "file"],
+        default="benchmark",
+        help="joint damping/friction: the generated objects' (default) or the file's",
+    )
+    common.add_argument("--force", action="store_true", help="replace an object already in --out")
+    common.add_argument("--json", action="store_true", help="print what was done as JSON")
+    one = sub.add_parser("import-mjcf", parents=[common], help="import one MJCF file")
+    one.add_argument("file", type=Path)
+    one.add_argument("--name", help="the object's folder name (default: the file's stem)")
+    one.add_argument(
+        "--yaw", type=float, default=0.0, help="turn the object about z (degrees) to face -y"
+    )
+    sub.add_parser(
+        "metaworld",
+        parents=[common],
+        help="import every articulated object of the installed metaworld package",
+    )
+    a = p.parse_args(argv)
+    kw = {"size": a.size, "dynamics": a.dynamics, "force": a.force}
+    try:
+        if a.command == "import-mjcf":
+            imported, skipped = [import_mjcf(a.file, a.out, a.name, yaw_deg=a.yaw, **kw)], []
+        else:
+            imported, skipped = import_folder(metaworld_objects_dir(), a.out, **kw)
+            if not imported:
+                raise ImportFailed("no articulated object found in the metaworld package")
+    except ImportFailed as e:
+        if a.json:
+            print(json.dumps({"error": str(e)}))
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    _report(imported, skipped, a.json)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
