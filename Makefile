@@ -81,6 +81,8 @@ test-python: build py fixture
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py
 	# Ray on a local cluster: sharded evaluation, retries.
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_ray.py
+	# Objects made elsewhere: the MJCF importer (MuJoCo) on Meta-World, and eval --objects.
+	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_objects.py
 	# The differential suite: the `reference` physics against PyBullet.
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/reference
 	# umpnet's wgpu and PyBullet's EGL renderer in one process (its own: EGL state is per process).

@@ -182,10 +182,22 @@ def generated_cases(umpnet_bin: str, folder: Path, per_category: int = 2, action
         check=True,
         capture_output=True,
     )
+    return folder_cases(sorted(folder.glob("*/*/mobility.urdf")), actions=actions, seed=seed, scaled=False)
+
+
+def folder_cases(urdfs: list[Path], actions: int = 6, seed: int = 0, scaled: bool = True) -> list[Case]:
+    """Every movable joint of each URDF, grasped near its part's far edge, under
+    seeded random directions mixed with pulls along the opening direction. With
+    `scaled`, each object is placed at the scale of its object_meta_info.json
+    (an imported object at its scene size)."""
     rng = np.random.default_rng(seed)
     cases = []
-    for urdf in sorted(folder.glob("*/*/mobility.urdf")):
-        art = umpnet.Articulation(str(urdf))
+    for urdf in urdfs:
+        scale = 1.0
+        meta = urdf.with_name("object_meta_info.json")
+        if scaled and meta.is_file():
+            scale = float(json.loads(meta.read_text())["scale"])
+        art = umpnet.Articulation(str(urdf), scale=scale)
         for joint in art.joint_names():
             link, axis, origin = art.joint_axis(joint)
             verts = np.array(art.link_vertices(link))
@@ -207,6 +219,12 @@ def generated_cases(umpnet_bin: str, folder: Path, per_category: int = 2, action
                     dirs.append(list(d / np.linalg.norm(d)))
                 else:
                     dirs.append("tangent" if rng.random() < 0.7 else "-tangent")
+            u = float(rng.uniform(0.0, 0.4))
+            if scaled:
+                # Within the joint's range: an imported range need not start at 0.
+                lo, hi = _limits(str(urdf), joint)
+                factor = scale if kind == "prismatic" else 1.0
+                u = factor * (lo + u * (hi - lo))
             cases.append(
                 Case(
                     f"{urdf.parent.parent.name}/{urdf.parent.name} {joint}",
@@ -216,7 +234,8 @@ def generated_cases(umpnet_bin: str, folder: Path, per_category: int = 2, action
                     list(point),
                     dirs,
                     kind,
-                    start={joint: float(rng.uniform(0.0, 0.4))},
+                    start={joint: u},
+                    scale=scale,
                 )
             )
     return cases
@@ -230,6 +249,16 @@ def _kind(urdf: str, joint: str):
             t = j.get("type")
             return {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}.get(t)
     return None
+
+
+def _limits(urdf: str, joint: str) -> tuple[float, float]:
+    import xml.etree.ElementTree as ET
+
+    for j in ET.parse(urdf).getroot().iter("joint"):
+        if j.get("name") == joint and j.find("limit") is not None:
+            lim = j.find("limit")
+            return float(lim.get("lower", 0)), float(lim.get("upper", 0))
+    return (0.0, 1.0)
 
 
 def _world(case: Case, point_in_base) -> list:

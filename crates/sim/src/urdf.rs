@@ -140,6 +140,12 @@ pub const MAX_LINKS: usize = 64;
 const MAX_NUMBER_TOKEN: usize = 64;
 /// Largest coordinate (m) of any origin or vertex in a link's frame.
 pub const MAX_COORDINATE: f32 = 1000.0;
+/// Joint limits, in metres (prismatic) or radians (revolute): a wider range
+/// is a continuous joint written as a limited one, or a unit mistake.
+pub const MAX_LIMIT: f64 = 1000.0;
+/// Mesh scales: beyond these a mesh is flat or huge in f32.
+pub const MIN_MESH_SCALE: f64 = 1e-6;
+pub const MAX_MESH_SCALE: f64 = 1e6;
 /// Longest attribute value quoted back in an error message.
 const MAX_QUOTED: usize = 80;
 
@@ -404,7 +410,24 @@ fn check_numbers(robot: &urdf_rs::Robot, path: &Path) -> Result<()> {
                 at_least(format!("{what} <sphere radius>"), &[*radius], 0.0, false)
             }
             urdf_rs::Geometry::Mesh { scale, .. } => match scale {
-                Some(s) => at_least(format!("{what} <mesh scale>"), &s.0, 0.0, true),
+                Some(s) => {
+                    at_least(format!("{what} <mesh scale>"), &s.0, 0.0, true)?;
+                    // 1e-300 is positive in the file and zero as f32: a flat mesh.
+                    if s.0
+                        .iter()
+                        .all(|v| (MIN_MESH_SCALE..=MAX_MESH_SCALE).contains(v))
+                    {
+                        Ok(())
+                    } else {
+                        Err(urdf_err(
+                            path,
+                            format!(
+                                "{what} <mesh scale> must be within [{MIN_MESH_SCALE:e}, {MAX_MESH_SCALE:e}], found {:?}",
+                                s.0
+                            ),
+                        ))
+                    }
+                }
                 None => Ok(()),
             },
         }
@@ -475,11 +498,27 @@ fn check_numbers(robot: &urdf_rs::Robot, path: &Path) -> Result<()> {
     }
     for j in &robot.joints {
         origin(format!("joint `{}`", j.name), &j.origin)?;
+        // Checked before normalising: `1e39 0 0` is a direction in f64 but
+        // overflows the f32 the file's numbers are meant as.
+        bad(format!("joint `{}` <axis xyz>", j.name), &j.axis.xyz.0)?;
         let l = &j.limit;
         bad(
             format!("joint `{}` <limit> lower/upper", j.name),
             &[l.lower, l.upper],
         )?;
+        let limited = matches!(
+            j.joint_type,
+            urdf_rs::JointType::Revolute | urdf_rs::JointType::Prismatic
+        );
+        if limited && (l.lower.abs() > MAX_LIMIT || l.upper.abs() > MAX_LIMIT) {
+            return Err(urdf_err(
+                path,
+                format!(
+                    "joint `{}` <limit> lower/upper must be within ±{MAX_LIMIT} (m or rad), found lower={} upper={}; a joint without limits is `continuous`",
+                    j.name, l.lower, l.upper
+                ),
+            ));
+        }
         at_least(
             format!("joint `{}` <limit> effort/velocity", j.name),
             &[l.effort, l.velocity],
@@ -1104,6 +1143,55 @@ mod tests {
             r#"{BASE}<joint name="j" type="floating"><parent link="base"/><child link="door"/></joint>"#
         ));
         assert!(e.contains("not supported"), "{e}");
+    }
+
+    #[test]
+    fn numbers_that_overflow_or_underflow_f32_or_mean_nothing_are_named() {
+        let joint = |axis: &str, limit: &str| {
+            format!(
+                r#"{BASE}<joint name="j" type="revolute"><parent link="base"/><child link="door"/><axis xyz="{axis}"/>{limit}</joint>"#
+            )
+        };
+        let e = err_of(&joint("1e39 0 0", r#"<limit lower="0" upper="1"/>"#));
+        assert!(
+            e.contains("joint `j` <axis xyz> must be finite numbers within f32 range"),
+            "{e}"
+        );
+        let e = err_of(&joint("1 0 0", r#"<limit lower="-1e30" upper="1e30"/>"#));
+        assert!(
+            e.contains("joint `j` <limit> lower/upper must be within ±1000"),
+            "{e}"
+        );
+        let e = err_of(&joint("1 0 0", r#"<limit lower="0" upper="1001"/>"#));
+        assert!(e.contains("<limit> lower/upper must be within"), "{e}");
+        // The edge itself loads.
+        assert!(
+            parse_urdf(
+                &wrap(&joint("1 0 0", r#"<limit lower="-1000" upper="1000"/>"#)),
+                Path::new("x.urdf")
+            )
+            .is_ok()
+        );
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("m.obj"),
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        let mesh = |scale: &str| {
+            wrap(&format!(
+                r#"<link name="base"><visual><geometry><mesh filename="m.obj" scale="{scale}"/></geometry></visual></link>"#
+            ))
+        };
+        let urdf = dir.path().join("mobility.urdf");
+        for bad in ["1e-300 1 1", "1 1 1e7"] {
+            let e = parse_urdf(&mesh(bad), &urdf).unwrap_err().to_string();
+            assert!(
+                e.contains("link `base` <visual> <mesh scale> must be within [1e-6, 1e6]"),
+                "{bad}: {e}"
+            );
+        }
+        assert!(parse_urdf(&mesh("1e-6 1 1e6"), &urdf).is_ok());
     }
 
     #[test]

@@ -102,6 +102,33 @@ fn mean_of_means(cells: &Cells, p: &str, cats: &[&RowKey], metric: &'static str)
     (!means.is_empty()).then(|| means.iter().sum::<f64>() / means.len() as f64)
 }
 
+/// Objects where the oracle (the ceiling) succeeds in under 95% of goal
+/// episodes: those objects' rows then measure the object as much as the
+/// policy (a part too small or hidden, a range under the success threshold).
+const ORACLE_FLOOR: f64 = 0.95;
+
+fn oracle_shortfalls(rows: &[&RowKey], cells: &Cells) -> Vec<String> {
+    rows.iter()
+        .filter(|r| matches!(r, RowKey::Object(_)))
+        .filter_map(|r| {
+            let v = cell(cells, "oracle", r, "success_rate")?;
+            let mean = mean_ci(v).0;
+            (mean < ORACLE_FLOOR).then(|| format!("{} {mean:.2}", r.name()))
+        })
+        .collect()
+}
+
+fn shortfall_note(rows: &[&RowKey], cells: &Cells) -> Option<String> {
+    let short = oracle_shortfalls(rows, cells);
+    (!short.is_empty()).then(|| {
+        format!(
+            "the oracle succeeds in under {ORACLE_FLOOR:.2} of goal episodes on: {}; \
+             those rows measure the object as much as the policy",
+            short.join(", ")
+        )
+    })
+}
+
 /// The screen table: per metric and split, a row of means per policy with
 /// the 95% interval's half-width below it.
 pub fn screen(task: Task, policies: &[String], categories: &[RowKey], cells: &Cells) -> String {
@@ -144,6 +171,11 @@ pub fn screen(task: Task, policies: &[String], categories: &[RowKey], cells: &Ce
                 }
                 let avg = mean_of_means(cells, p, &cats, metric).unwrap_or(f64::NAN);
                 let _ = writeln!(s, "{means} {avg:>7.2}\n{}", halves.trim_end());
+            }
+            if *metric == "success_rate"
+                && let Some(note) = shortfall_note(&cats, cells)
+            {
+                let _ = writeln!(s, "  note: {note}");
             }
         }
     }
@@ -227,6 +259,11 @@ pub fn markdown(task: Task, policies: &[String], categories: &[RowKey], cells: &
                 }
             }
             s.push_str("\n\n");
+            if *metric == "success_rate"
+                && let Some(note) = shortfall_note(&cats, cells)
+            {
+                let _ = writeln!(s, "Note: {note}.\n");
+            }
         }
     }
     s

@@ -46,7 +46,7 @@ _PLANE, _HFIELD, _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = 0, 1, 2
 # MuJoCo's default geom rgba: a geom with this colour and a material shows the material's.
 _DEFAULT_RGBA = np.array([0.5, 0.5, 0.5, 1.0])
 # The viewer draws groups 0-2 by default; files put collision-only geoms in 3-5.
-_VISUAL_GROUPS = range(0, 3)
+_VISUAL_GROUPS = range(3)
 # Joint dynamics of the generated objects (crates/sim/src/objects/builder.rs),
 # so imported objects meet the same physics as the benchmark's own.
 BENCHMARK_DAMPING = 2.0
@@ -57,6 +57,7 @@ DEFAULT_SIZE = 0.8
 # What the loader accepts (crates/sim/src/urdf.rs): limits within this many m or rad.
 _MAX_LIMIT = 1000.0
 _F32_MAX = float(np.finfo(np.float32).max)
+_MIN_MESH_SCALE, _MAX_MESH_SCALE = 1e-6, 1e6
 _MAX_LINKS = 64
 
 
@@ -101,9 +102,7 @@ def _mujoco():
     try:
         import mujoco
     except ImportError as e:
-        raise ImportFailed(
-            "the MJCF importer needs MuJoCo: pip install 'umpnet[mjcf]' (mujoco==3.3.0)"
-        ) from e
+        raise ImportFailed("the MJCF importer needs MuJoCo: pip install 'umpnet[mjcf]' (mujoco==3.3.0)") from e
     return mujoco
 
 
@@ -124,26 +123,68 @@ def compile_mjcf(path: Path):
         raise ImportFailed(f"{path}: no such file")
     tag = _root_tag(path)
     if tag != "mujocoinclude":
+        _check_raw(mujoco, path)
         try:
             return mujoco.MjModel.from_xml_path(str(path))
         except Exception as e:  # MuJoCo raises ValueError; keep its words
             raise ImportFailed(f"{path}: MuJoCo cannot compile it: {_one_line(e)}") from e
-    errors = []
-    for body in ("{}", "<worldbody>{}</worldbody>"):
-        include = body.format(f'<include file="{path.name}"/>')
-        fd, wrapper = tempfile.mkstemp(prefix=".umpnet-wrap-", suffix=".xml", dir=path.parent)
-        try:
-            with os.fdopen(fd, "w") as f:
-                f.write(f'<mujoco model="{path.stem}">{include}</mujoco>\n')
-            return mujoco.MjModel.from_xml_path(wrapper)
-        except Exception as e:
-            errors.append(_one_line(e))
-        finally:
-            os.unlink(wrapper)
-    raise ImportFailed(
-        f"{path}: a <mujocoinclude> fragment that MuJoCo cannot compile inside a <mujoco> root: "
-        + errors[-1]
-    )
+    # A fragment of bodies belongs in <worldbody>; one of assets or defaults in <mujoco>.
+    include = f'<include file="{path.name}"/>'
+    if _top_level_tags(path) & _WORLDBODY_CHILDREN:
+        include = f"<worldbody>{include}</worldbody>"
+    fd, wrapper = tempfile.mkstemp(prefix=".umpnet-wrap-", suffix=".xml", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(f'<mujoco model="{path.stem}">{include}</mujoco>\n')
+        return mujoco.MjModel.from_xml_path(wrapper)
+    except Exception as e:
+        raise ImportFailed(
+            f"{path}: a <mujocoinclude> fragment that MuJoCo cannot compile inside a <mujoco> root: {_one_line(e)}"
+        ) from e
+    finally:
+        os.unlink(wrapper)
+
+
+_WORLDBODY_CHILDREN = {"body", "geom", "site", "camera", "light", "frame", "replicate"}
+
+
+def _top_level_tags(path: Path) -> set[str]:
+    try:
+        return {child.tag for child in ET.parse(path).getroot()}
+    except ET.ParseError as e:
+        raise ImportFailed(f"{path}: not well-formed XML: {e}") from e
+
+
+def _check_raw(mujoco, path: Path) -> None:
+    """Numbers as the file writes them (classes applied), before MuJoCo
+    normalises an axis or turns a mesh scale into a compile error: the same
+    bounds as the URDF loader's, naming the element."""
+    if not hasattr(mujoco, "MjSpec"):
+        return
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except ValueError:
+        return  # MuJoCo's compile error says it better
+    limited = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
+    for j in spec.joints:
+        if j.type not in limited:
+            continue
+        _check_number(path, f"joint `{j.name}` axis", list(j.axis))
+        _check_number(path, f"joint `{j.name}` range", list(j.range))
+        # A hinge's range may be in degrees here; build() bounds it in radians.
+        slide = j.type == mujoco.mjtJoint.mjJNT_SLIDE
+        if slide and max(abs(v) for v in j.range) > _MAX_LIMIT:
+            raise ImportFailed(
+                f"{path}: joint `{j.name}` range {list(map(float, j.range))} is beyond "
+                f"±{_MAX_LIMIT:g} (m or rad); a joint without limits leaves range unset"
+            )
+    for m in spec.meshes:
+        scale = [float(v) for v in m.scale]
+        if not all(_MIN_MESH_SCALE <= abs(v) <= _MAX_MESH_SCALE for v in scale):
+            raise ImportFailed(
+                f"{path}: mesh `{m.name}` scale must be within "
+                f"[{_MIN_MESH_SCALE:g}, {_MAX_MESH_SCALE:g}] in size, found {scale}"
+            )
 
 
 def _one_line(e: Exception) -> str:
@@ -167,14 +208,15 @@ def _lathe(profile: list[tuple[float, float]], segments: int = 24):
             verts.extend((r * math.cos(a), r * math.sin(a), z) for a in angles)
             rings.append(list(range(start, start + segments)))
     faces = []
-    for lo, hi in zip(rings, rings[1:]):
+    for i in range(len(rings) - 1):
+        lo, hi = rings[i], rings[i + 1]
         for k in range(segments):
             a0, a1 = lo[k % len(lo)], lo[(k + 1) % len(lo)]
             b0, b1 = hi[k % len(hi)], hi[(k + 1) % len(hi)]
             if len(lo) > 1:
                 faces.append((a0, a1, b1 if len(hi) > 1 else b0))
             if len(hi) > 1:
-                faces.append((a0 if len(lo) > 1 else a0, b1, b0))
+                faces.append((a0, b1, b0))
     return np.array(verts, dtype=np.float64), np.array(faces, dtype=np.int64)
 
 
@@ -270,7 +312,7 @@ def _check_number(path: Path, what: str, values) -> None:
     flat = np.asarray(values, dtype=np.float64).ravel()
     bad = flat[~(np.isfinite(flat) & (np.abs(flat) <= _F32_MAX))]
     if bad.size:
-        raise ImportFailed(f"{path}: {what} must be finite within f32 range, found {bad[0]!r}")
+        raise ImportFailed(f"{path}: {what} must be finite within f32 range, found {float(bad[0])!r}")
 
 
 def build(path: Path, dynamics: str = "benchmark"):
@@ -285,9 +327,7 @@ def build(path: Path, dynamics: str = "benchmark"):
     if not movable:
         kinds = sorted({("free", "ball", "slide", "hinge")[int(t)] for t in m.jnt_type})
         found = f"only {', '.join(kinds)} joints" if kinds else "no joints"
-        raise ImportFailed(
-            f"{path}: no hinge or slide joint ({found}); an articulated object needs one"
-        )
+        raise ImportFailed(f"{path}: no hinge or slide joint ({found}); an articulated object needs one")
     articulated_roots = {int(m.body_rootid[int(m.jnt_bodyid[j])]) for j in movable}
 
     links = [_Link("base", np.zeros(3))]
@@ -333,15 +373,11 @@ def build(path: Path, dynamics: str = "benchmark"):
             lname = _safe(_name(m, "body", b)) if last else f"{_safe(_name(m, 'body', b))}_{k}"
             links.append(_Link(lname, anchor))
             child = len(links) - 1
-            joints.append(
-                _Joint(_safe(jname), kind, cur, child, axis, lo, hi, damping, friction)
-            )
+            joints.append(_Joint(_safe(jname), kind, cur, child, axis, lo, hi, damping, friction))
             cur = child
         owner[b] = cur
     if len(links) > _MAX_LINKS:
-        raise ImportFailed(
-            f"{path}: {len(links)} links after import; an object may have at most {_MAX_LINKS}"
-        )
+        raise ImportFailed(f"{path}: {len(links)} links after import; an object may have at most {_MAX_LINKS}")
 
     # Geometry: what a viewer draws, by the link that carries its body.
     shown: dict[int, list[int]] = {}
@@ -429,9 +465,7 @@ def import_mjcf(
     extent = float((hi - lo).max())
     if not extent > 0:
         raise ImportFailed(f"{path}: the object's geometry has no extent")
-    if not any(links[j.child].visuals for j in joints) and not any(
-        links[c].visuals for c in range(1, len(links))
-    ):
+    if not any(links[j.child].visuals for j in joints) and not any(links[c].visuals for c in range(1, len(links))):
         warnings.append("no moving part has visible geometry")
     # The object frame: centred in x and y on the floor (z = 0 at its lowest point).
     centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
@@ -520,9 +554,7 @@ def _check_loads(urdf: Path, scale: float) -> None:
 def metaworld_objects_dir() -> Path:
     spec = importlib.util.find_spec("metaworld")
     if spec is None or not spec.submodule_search_locations:
-        raise ImportFailed(
-            "the metaworld package is not installed: pip install 'umpnet[metaworld]'"
-        )
+        raise ImportFailed("the metaworld package is not installed: pip install 'umpnet[metaworld]'")
     return Path(next(iter(spec.submodule_search_locations))) / "assets" / "objects"
 
 
@@ -546,10 +578,7 @@ def _report(imported: list[Imported], skipped, as_json: bool) -> None:
                         {
                             "name": i.name,
                             "urdf": str(i.urdf),
-                            "joints": [
-                                {"name": n, "type": k, "lower": lo, "upper": hi}
-                                for n, k, lo, hi in i.joints
-                            ],
+                            "joints": [{"name": n, "type": k, "lower": lo, "upper": hi} for n, k, lo, hi in i.joints],
                             "links": i.links,
                             "scale": i.scale,
                             "dropped": i.dropped,
@@ -595,9 +624,7 @@ def main(argv: list[str] | None = None) -> int:
     one = sub.add_parser("import-mjcf", parents=[common], help="import one MJCF file")
     one.add_argument("file", type=Path)
     one.add_argument("--name", help="the object's folder name (default: the file's stem)")
-    one.add_argument(
-        "--yaw", type=float, default=0.0, help="turn the object about z (degrees) to face -y"
-    )
+    one.add_argument("--yaw", type=float, default=0.0, help="turn the object about z (degrees) to face -y")
     sub.add_parser(
         "metaworld",
         parents=[common],

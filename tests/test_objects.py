@@ -1,0 +1,262 @@
+"""Objects made elsewhere: the MJCF importer (`python -m umpnet.objects`, through
+MuJoCo) and `umpnet eval --objects`, on Meta-World's objects and on MJCF files
+written here."""
+
+import json
+import os
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+import umpnet
+
+ROOT = Path(__file__).resolve().parents[1]
+UMPNET = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
+CABINET = ROOT / "tests" / "data" / "mjcf" / "two_door_cabinet.xml"
+# The articulated objects Meta-World 3.1.1 ships (each compiles standalone in MuJoCo).
+METAWORLD = {
+    "drawer": ("prismatic",),
+    "faucet": ("revolute",),
+    "lever": ("revolute",),
+    "handle_press": ("prismatic",),
+    "window": ("prismatic",),
+    "window_horiz": ("prismatic",),
+    "doorlockA": ("revolute",),
+    "buttonbox": ("prismatic",),
+    "laptop": ("revolute",),
+    "dial": ("revolute",),
+    "coffeemachine": ("prismatic",),
+}
+
+
+def importer(*args, check=True):
+    p = subprocess.run(
+        [sys.executable, "-m", "umpnet.objects", *map(str, args)],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    if check and p.returncode != 0:
+        raise AssertionError(f"importer {args} exited {p.returncode}: {p.stderr}")
+    return p
+
+
+def umpnet_cli(*args, check=True):
+    p = subprocess.run([UMPNET, *map(str, args)], check=False, capture_output=True, text=True, timeout=600)
+    if check and p.returncode != 0:
+        raise AssertionError(f"umpnet {args} exited {p.returncode}: {p.stderr}")
+    return p
+
+
+@pytest.fixture(scope="module")
+def external(tmp_path_factory):
+    out = tmp_path_factory.mktemp("external")
+    report = json.loads(importer("metaworld", "--out", out, "--json").stdout)
+    return out, report
+
+
+def joints_of(urdf: Path) -> dict:
+    root = ET.parse(urdf).getroot()
+    out = {}
+    for j in root.iter("joint"):
+        lim = j.find("limit")
+        out[j.get("name")] = {
+            "type": j.get("type"),
+            "axis": [float(v) for v in j.find("axis").get("xyz").split()],
+            "limit": (float(lim.get("lower")), float(lim.get("upper"))) if lim is not None else None,
+            "parent": j.find("parent").get("link"),
+            "child": j.find("child").get("link"),
+        }
+    return out
+
+
+def test_metaworld_objects_import_and_load_and_the_rest_are_skipped_with_a_reason(external):
+    out, report = external
+    imported = {o["name"]: o for o in report["imported"]}
+    assert set(METAWORLD) <= set(imported), sorted(imported)
+    for name, kinds in METAWORLD.items():
+        o = imported[name]
+        assert tuple(j["type"] for j in o["joints"]) == kinds, o
+        urdf = out / name / "mobility.urdf"
+        meta = json.loads((out / name / "object_meta_info.json").read_text())
+        # Loads through the simulator's own loader at its scene scale, stands on
+        # the floor and is about as large as the generated objects.
+        art = umpnet.Articulation(str(urdf), position=[0, 0, 0], scale=meta["scale"])
+        verts = all_vertices(art, urdf)
+        extent = (verts.max(axis=0) - verts.min(axis=0)).max()
+        assert extent == pytest.approx(0.8, rel=1e-3), name
+        assert verts[:, 2].min() == pytest.approx(0.0, abs=1e-4), name
+        assert abs(verts[:, 0].min() + verts[:, 0].max()) < 1e-3, name
+        # Scenery (Meta-World's table and wall) is not part of the object.
+        assert "tablelink" in o["dropped"]
+        objs = list((out / name / "textured_objs").glob("*.obj"))
+        assert objs and all(p.with_suffix(".mtl").is_file() for p in objs)
+    skipped = {s["file"]: s["why"] for s in report["skipped"]}
+    assert "no hinge or slide joint (only free joints)" in skipped["box.xml"]
+    assert "MuJoCo cannot compile it" in skipped["table.xml"]
+
+
+def link_names(urdf: Path) -> list:
+    return [link.get("name") for link in ET.parse(urdf).getroot().iter("link")]
+
+
+def all_vertices(art, urdf: Path) -> np.ndarray:
+    """Every link's vertices (some links are empty: a dial's base, a helper link)."""
+    return np.concatenate([np.array(art.link_vertices(n)).reshape(-1, 3) for n in link_names(urdf)])
+
+
+def test_an_mjcf_cabinet_keeps_its_frames_units_parts_and_colours(tmp_path):
+    report = json.loads(importer("import-mjcf", CABINET, "--out", tmp_path, "--name", "cab", "--json").stdout)
+    (o,) = report["imported"]
+    assert o["dropped"] == ["table"]
+    urdf = tmp_path / "cab" / "mobility.urdf"
+    j = joints_of(urdf)
+    assert set(j) == {"left_hinge", "right_hinge", "drawer_slide"}
+    # compiler angle="degree": -120..0 degrees in the file.
+    assert j["left_hinge"]["type"] == "revolute"
+    assert j["left_hinge"]["limit"] == pytest.approx((-2.0944, 0.0), abs=1e-4)
+    # The drawer's body is turned 180 degrees about z: its +y slide opens toward -y.
+    assert j["drawer_slide"]["axis"] == pytest.approx([0, -1, 0], abs=1e-6)
+    assert j["drawer_slide"]["limit"] == pytest.approx((0.0, 0.3))
+    # The doors open toward the camera (-y), as the file says.
+    art = umpnet.Articulation(str(urdf), position=[0, 0, 0])
+    for hinge, value in [("left_hinge", -1.0), ("right_hinge", 1.0)]:
+        link, _, _ = art.joint_axis(hinge)
+        closed = np.array(art.link_vertices(link))[:, 1].mean()
+        art.set_joints({hinge: value})
+        assert np.array(art.link_vertices(link))[:, 1].mean() < closed - 0.05, hinge
+    # Colours come from the geoms' rgba and materials (the handles' material).
+    kd = sorted({(tmp_path / "cab" / "textured_objs" / m.name).read_text().split("Kd ")[1].strip()
+                 for m in (tmp_path / "cab" / "textured_objs").glob("*.mtl")})  # fmt: skip
+    assert kd == ["0.5500 0.3500 0.2000", "0.8500 0.8500 0.9000"]
+    # No collision-only geom (rgba 0.2 0.2 0.9) and no floor plane were drawn.
+    art.set_joints({"left_hinge": 0.0, "right_hinge": 0.0})
+    verts = all_vertices(art, urdf)
+    assert verts[:, 0].max() - verts[:, 0].min() < 0.81
+
+
+def test_refusals_name_the_file_and_the_reason(tmp_path):
+    no_joint = tmp_path / "block.xml"
+    no_joint.write_text(
+        '<mujoco><worldbody><body><freejoint/><geom type="box" size=".1 .1 .1"/></body></worldbody></mujoco>'
+    )
+    broken = tmp_path / "broken.xml"
+    broken.write_text(
+        '<mujoco><worldbody><body><joint type="hinge"/><geom type="nonsense"/></body></worldbody></mujoco>'
+    )
+    missing = tmp_path / "missing_mesh.xml"
+    missing.write_text(
+        '<mujoco><asset><mesh name="m" file="nowhere.stl"/></asset><worldbody><body>'
+        '<joint type="slide" range="0 1"/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>'
+    )
+    cases = [
+        (no_joint, "no hinge or slide joint (only free joints)"),
+        (broken, "MuJoCo cannot compile it"),
+        (missing, "nowhere.stl"),
+        (tmp_path / "absent.xml", "no such file"),
+    ]
+    for path, needle in cases:
+        p = importer("import-mjcf", path, "--out", tmp_path / "out", check=False)
+        assert p.returncode == 1, (path, p.stdout, p.stderr)
+        line = p.stderr.strip()
+        assert line.startswith(f"error: {path}") and needle in line, line
+        assert "Traceback" not in p.stderr
+        assert not (tmp_path / "out" / path.stem).exists()
+
+
+def test_numbers_beyond_f32_or_sense_are_refused_by_element(tmp_path):
+    body = (
+        '<mujoco><asset><mesh name="m" vertex="0 0 0 1 0 0 0 1 0 0 0 1" scale="{scale}"/></asset>'
+        '<worldbody><body><geom type="box" size=".1 .1 .1"/><body>'
+        '<joint name="j" type="hinge" axis="{axis}" range="{range}"/><geom type="mesh" mesh="m"/>'
+        "</body></body></worldbody></mujoco>"
+    )
+    ok = {"scale": "1 1 1", "axis": "0 0 1", "range": "0 1"}
+    for field, value, needle in [
+        ("axis", "1e39 0 0", "joint `j` axis must be finite within f32 range"),
+        ("range", "-1e30 1e30", "joint `j` range"),
+        ("range", "0 1e39", "joint `j` range must be finite within f32 range"),
+        ("scale", "1e-300 1 1", "mesh `m` scale must be within"),
+    ]:
+        path = tmp_path / f"{field}.xml"
+        path.write_text(body.format(**{**ok, field: value}))
+        p = importer("import-mjcf", path, "--out", tmp_path / "out", check=False)
+        assert p.returncode == 1 and needle in p.stderr, (field, p.stderr)
+    path = tmp_path / "fine.xml"
+    path.write_text(body.format(**ok))
+    importer("import-mjcf", path, "--out", tmp_path / "out")
+
+
+def test_a_mujocoinclude_fragment_is_wrapped_and_an_existing_object_is_kept(tmp_path):
+    frag = tmp_path / "lid.xml"
+    frag.write_text(
+        '<mujocoinclude><body name="box"><geom type="box" size=".2 .2 .1"/>'
+        '<body name="lid" pos="0 .2 .1"><joint name="lid_hinge" type="hinge" axis="1 0 0" range="0 90"/>'
+        '<geom type="box" size=".2 .2 .01" pos="0 -.2 0"/></body></body></mujocoinclude>'
+    )
+    importer("import-mjcf", frag, "--out", tmp_path / "out")
+    # MuJoCo's unit for angles is the degree unless <compiler angle="radian">.
+    limit = joints_of(tmp_path / "out" / "lid" / "mobility.urdf")["lid_hinge"]["limit"]
+    assert limit == pytest.approx((0.0, np.pi / 2), abs=1e-5)
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".umpnet-wrap")] == []
+    before = (tmp_path / "out" / "lid" / "mobility.urdf").read_bytes()
+    p = importer("import-mjcf", frag, "--out", tmp_path / "out", check=False)
+    assert p.returncode == 1 and "--force" in p.stderr
+    assert (tmp_path / "out" / "lid" / "mobility.urdf").read_bytes() == before
+
+
+def _without_wall_time(path: Path) -> dict:
+    r = json.loads(path.read_text())
+    r["summary"].pop("wall_seconds")
+    return r
+
+
+def test_eval_objects_scores_each_object_as_a_row_and_shards_merge_byte_for_byte(external, tmp_path):
+    out, _ = external
+    common = ["eval", "--task", "goal", "--objects", out, "--episodes-per-category", "3", "--policies", "random"]
+    whole = umpnet_cli(*common, "--out", tmp_path / "whole")
+    table = (tmp_path / "whole" / "table.txt").read_text()
+    assert "objects" in table and "train categories" not in table
+    for name in METAWORLD:
+        assert name in table
+    summary = _without_wall_time(tmp_path / "whole" / "results.json")["summary"]
+    assert summary["categories"] == []
+    rows = {o["name"] for o in summary["objects"]}
+    assert set(METAWORLD) <= rows
+    assert all(o["sha256"].startswith("sha256:") for o in summary["objects"])
+    oracle = {c["object"]: c["mean"] for c in summary["cells"]
+              if c["policy"] == "oracle" and c["metric"] == "success_rate"}  # fmt: skip
+    assert set(oracle) == rows
+    # The oracle is the ceiling; any object where it falls short is named, not dropped.
+    short = sorted(name for name, mean in oracle.items() if mean < 0.95)
+    for name in short:
+        assert f"{name} {oracle[name]:.2f}" in whole.stdout
+    assert sum(oracle[n] for n in METAWORLD) / len(METAWORLD) > 0.8
+    csv = (tmp_path / "whole" / "results.csv").read_text().splitlines()
+    assert any(line.startswith("oracle,average,objects,success_rate") for line in csv)
+    # Shards of the same run merge into it, byte for byte but the wall time.
+    for k in (1, 2):
+        umpnet_cli(*common, "--shard", f"{k}/2", "--out", tmp_path / f"s{k}")
+    umpnet_cli("eval", "merge", tmp_path / "s1", tmp_path / "s2", "--out", tmp_path / "merged")
+    assert _without_wall_time(tmp_path / "merged" / "results.json") == _without_wall_time(
+        tmp_path / "whole" / "results.json"
+    )
+    assert (tmp_path / "merged" / "table.txt").read_bytes() == table.encode()
+
+
+def test_eval_objects_with_categories_and_bad_folders(external, tmp_path):
+    out, _ = external
+    p = umpnet_cli("--json", "eval", "--task", "exploration", "--objects", out, "--categories", "Door",
+                   "--episodes-per-category", "1", "--policies", "random")  # fmt: skip
+    summary = json.loads(p.stdout)
+    assert summary["categories"] == ["Door"] and len(summary["objects"]) >= len(METAWORLD)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    for folder in (empty, tmp_path / "absent"):
+        p = umpnet_cli("eval", "--objects", folder, check=False)
+        assert p.returncode == 2, p.stderr
+        assert str(folder) in p.stderr and "Traceback" not in p.stderr
