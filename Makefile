@@ -7,7 +7,7 @@ export XDG_RUNTIME_DIR ?= /tmp
 FIXTURE := $(CURDIR)/target/fixture
 export UMPNET_FIXTURE := $(FIXTURE)
 
-.PHONY: install install-runtime build py fixture demo eval-baselines train-baselines test test-rerun lint lint-rerun test-rust test-python mutants mutants-ci clean
+.PHONY: install install-runtime build py fixture demo eval-baselines eval-objects train-baselines test test-rerun lint lint-rerun test-rust test-python mutants mutants-ci clean
 
 install:
 	@bash scripts/install.sh all
@@ -53,6 +53,16 @@ SPLIT ?= test
 eval-baselines: build
 	$(UMPNET) eval --task exploration --split $(SPLIT) --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES) --out out/baselines-exploration-$(SPLIT) --force
 	$(UMPNET) eval --task goal --split $(SPLIT) --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --out out/baselines-goal-$(SPLIT) --force
+
+# Objects made elsewhere (docs/objects.md): every articulated object of the
+# installed metaworld package, imported through MuJoCo, scored like the
+# categories for the shipped model, random and the oracle, then the README's table.
+OBJECT_EPISODES ?= 50
+eval-objects: build py
+	$(PY) -m umpnet.objects metaworld --out data/external --force
+	$(UMPNET) eval --task goal --objects data/external --episodes-per-category $(OBJECT_EPISODES) --policies umpnet,random,oracle --out out/external-goal --force
+	$(UMPNET) eval --task exploration --objects data/external --episodes-per-category $(OBJECT_EPISODES) --policies umpnet,random,oracle --out out/external-exploration --force
+	$(PY) scripts/objects_table.py
 
 # umpnet and every baseline with one recipe and one budget (cpu-small, 300 epochs,
 # dense labels, reference physics, seed 0): an estimated 45 minutes per variant here,

@@ -260,3 +260,18 @@ def test_eval_objects_with_categories_and_bad_folders(external, tmp_path):
         p = umpnet_cli("eval", "--objects", folder, check=False)
         assert p.returncode == 2, p.stderr
         assert str(folder) in p.stderr and "Traceback" not in p.stderr
+
+
+def test_one_body_of_a_scene_file_is_imported_alone(tmp_path):
+    report = json.loads(importer("import-mjcf", CABINET, "--body", "left_door", "--out", tmp_path, "--json").stdout)
+    (o,) = report["imported"]
+    assert o["name"] == "left_door" and [j["name"] for j in o["joints"]] == ["left_hinge"]
+    urdf = tmp_path / "left_door" / "mobility.urdf"
+    art = umpnet.Articulation(str(urdf), position=[0, 0, 0])
+    # Only the door and its handle: the carcass around it is not part of the object.
+    assert np.ptp(all_vertices(art, urdf)[:, 2]) == pytest.approx(0.66, abs=1e-3)
+    p = importer("import-mjcf", CABINET, "--body", "hinge", "--out", tmp_path, check=False)
+    assert p.returncode == 1
+    assert "no body named `hinge`" in p.stderr and "carcass, drawer, left_door, right_door" in p.stderr
+    p = importer("import-mjcf", CABINET, "--body", "table", "--out", tmp_path, check=False)
+    assert p.returncode == 1 and "no hinge or slide joint in body `table`" in p.stderr

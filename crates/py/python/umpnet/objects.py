@@ -315,8 +315,18 @@ def _check_number(path: Path, what: str, values) -> None:
         raise ImportFailed(f"{path}: {what} must be finite within f32 range, found {float(bad[0])!r}")
 
 
-def build(path: Path, dynamics: str = "benchmark"):
-    """The object of an MJCF file as links and joints in the object frame at qpos0."""
+def _ancestors(m, b: int) -> list[int]:
+    out = []
+    while b > 0:
+        b = int(m.body_parentid[b])
+        out.append(b)
+    return out
+
+
+def build(path: Path, dynamics: str = "benchmark", body: str | None = None):
+    """The object of an MJCF file as links and joints in the object frame at
+    qpos0: every top-level subtree with a hinge or slide joint, or only the
+    subtree of the named ``body`` (one appliance out of a scene)."""
     mujoco = _mujoco()
     m = compile_mjcf(path)
     d = mujoco.MjData(m)
@@ -324,18 +334,40 @@ def build(path: Path, dynamics: str = "benchmark"):
     mujoco.mj_kinematics(m, d)
 
     movable = [j for j in range(m.njnt) if int(m.jnt_type[j]) in (_SLIDE, _HINGE)]
+    root = 0
+    if body is not None:
+        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)
+        if root < 0:
+            named = sorted(
+                {
+                    _name(m, "body", a)
+                    for j in movable
+                    for a in [int(m.jnt_bodyid[j]), *_ancestors(m, int(m.jnt_bodyid[j]))]
+                    if a > 0 and mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, a)
+                }
+            )
+            raise ImportFailed(
+                f"{path}: no body named `{body}`; bodies with hinge or slide joints in them or "
+                f"below them: {', '.join(named) or 'none'}"
+            )
+        movable = [j for j in movable if root in (int(m.jnt_bodyid[j]), *_ancestors(m, int(m.jnt_bodyid[j])))]
     if not movable:
         kinds = sorted({("free", "ball", "slide", "hinge")[int(t)] for t in m.jnt_type})
         found = f"only {', '.join(kinds)} joints" if kinds else "no joints"
-        raise ImportFailed(f"{path}: no hinge or slide joint ({found}); an articulated object needs one")
+        where = f" in body `{body}`" if body else ""
+        raise ImportFailed(f"{path}: no hinge or slide joint{where} ({found}); an articulated object needs one")
     articulated_roots = {int(m.body_rootid[int(m.jnt_bodyid[j])]) for j in movable}
 
     links = [_Link("base", np.zeros(3))]
     joints: list[_Joint] = []
-    owner = {0: 0}  # body -> link that carries it
+    # body -> link that carries it; with a named body, its parent stands for the base.
+    owner = {0: 0} if body is None else {int(m.body_parentid[root]): 0}
     dropped, warnings = [], []
     for b in range(1, m.nbody):
-        if int(m.body_rootid[b]) not in articulated_roots:
+        if body is not None:
+            if b != root and root not in _ancestors(m, b):
+                continue
+        elif int(m.body_rootid[b]) not in articulated_roots:
             if int(m.body_parentid[b]) == 0:
                 dropped.append(_name(m, "body", b))
             continue
@@ -384,7 +416,8 @@ def build(path: Path, dynamics: str = "benchmark"):
     hidden: dict[int, list[int]] = {}
     for g in range(m.ngeom):
         b = int(m.geom_bodyid[g])
-        if b not in owner:
+        # With a named body, its parent's geoms are the scene around it, not the object.
+        if b not in owner or (body is not None and b == int(m.body_parentid[root])):
             continue
         if b == 0 and int(m.geom_type[g]) in (_PLANE, _HFIELD):
             continue
@@ -449,15 +482,16 @@ def import_mjcf(
     yaw_deg: float = 0.0,
     dynamics: str = "benchmark",
     force: bool = False,
+    body: str | None = None,
 ) -> Imported:
     """Imports one MJCF file to ``out/NAME`` (NAME: the file's stem by default)."""
     path = Path(path)
-    name = _safe(name or path.stem)
+    name = _safe(name or body or path.stem)
     if not (math.isfinite(size) and 0.01 <= size <= 100.0):
         raise ImportFailed(f"--size {size}: expected metres in [0.01, 100]")
     if not (math.isfinite(yaw_deg) and -360.0 <= yaw_deg <= 360.0):
         raise ImportFailed(f"--yaw {yaw_deg}: expected degrees in [-360, 360]")
-    links, joints, dropped, warnings = build(path, dynamics)
+    links, joints, dropped, warnings = build(path, dynamics, body)
     bounds = _bounds(links)
     if bounds is None:
         raise ImportFailed(f"{path}: no visible geometry on the articulated bodies")
@@ -624,6 +658,7 @@ def main(argv: list[str] | None = None) -> int:
     one = sub.add_parser("import-mjcf", parents=[common], help="import one MJCF file")
     one.add_argument("file", type=Path)
     one.add_argument("--name", help="the object's folder name (default: the file's stem)")
+    one.add_argument("--body", help="import only this body's subtree (one appliance out of a scene file)")
     one.add_argument("--yaw", type=float, default=0.0, help="turn the object about z (degrees) to face -y")
     sub.add_parser(
         "metaworld",
@@ -634,7 +669,7 @@ def main(argv: list[str] | None = None) -> int:
     kw = {"size": a.size, "dynamics": a.dynamics, "force": a.force}
     try:
         if a.command == "import-mjcf":
-            imported, skipped = [import_mjcf(a.file, a.out, a.name, yaw_deg=a.yaw, **kw)], []
+            imported, skipped = [import_mjcf(a.file, a.out, a.name, yaw_deg=a.yaw, body=a.body, **kw)], []
         else:
             imported, skipped = import_folder(metaworld_objects_dir(), a.out, **kw)
             if not imported:
