@@ -12,6 +12,7 @@ pub mod urdf;
 pub use error::{Result, SimError};
 pub mod camera;
 pub mod env;
+pub mod fields;
 pub mod labels;
 pub mod objects;
 pub mod render;

@@ -17,7 +17,7 @@
     reason = "joint and link indices come from the validated model this module was built from"
 )]
 mod ideal;
-mod kinematics;
+pub(crate) mod kinematics;
 mod pgs;
 mod reference;
 
