@@ -254,6 +254,18 @@ impl TrainEnv {
         self.meta(frame)
     }
 
+    /// The articulation labels of the current observation: per pixel, the
+    /// opening direction of its part and, in a goal scene, its displacement
+    /// to the goal state ([`umpnet_sim::fields::ArticulationFields`]).
+    pub fn articulation_fields(&self) -> Result<umpnet_sim::fields::ArticulationFields> {
+        let frame = self.current_frame()?;
+        let env = self
+            .env
+            .as_ref()
+            .ok_or_else(|| EvalError::Episode("reset() first".into()))?;
+        Ok(env.articulation_fields(frame)?)
+    }
+
     /// The reference observation (see [`TrainEnv::reference`]) written into `out`.
     pub fn reference_into(&self, out: &mut [f32]) -> Result<()> {
         let r = self

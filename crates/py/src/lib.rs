@@ -290,6 +290,22 @@ impl Env {
             .fill(py, std::slice::from_mut(&mut self.inner), false, self.copy)
     }
 
+    /// Dense labels of the current observation, for training: `flow` (H, W, 3),
+    /// each pixel's opening direction in the world frame (zero off movable
+    /// parts); `joint` (H, W), the joint a grasp there moves (-1: none);
+    /// `movable` (H, W); `goal_displacement` (H, W, 3), the way each point goes
+    /// to the goal state (m), or None without a goal.
+    fn articulation_fields<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let f = self.inner.articulation_fields().map_err(eval_err)?;
+        let stacked = fields::fields_dict(py, std::slice::from_ref(&f))?;
+        let d = PyDict::new(py);
+        for (k, v) in stacked.iter() {
+            let v = if v.is_none() { v } else { v.get_item(0)? };
+            d.set_item(k, v)?;
+        }
+        Ok(d)
+    }
+
     /// The scene as a dict; `reset(scene=...)` replays it exactly.
     #[getter]
     fn scene<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
@@ -525,6 +541,7 @@ fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
 
 mod arrays;
 mod buffers;
+mod fields;
 mod physics;
 mod probe;
 mod vec_env;

@@ -399,6 +399,18 @@ impl VecEnv {
         probe::labels_dict(py, &labels, k)
     }
 
+    /// Dense labels of every environment's current observation, stacked
+    /// (see Env.articulation_fields): `flow`, `joint`, `movable`,
+    /// `goal_displacement` with a leading (n,) axis.
+    fn articulation_fields<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let fields = self
+            .envs
+            .iter()
+            .map(|e| e.articulation_fields().map_err(eval_err))
+            .collect::<PyResult<Vec<_>>>()?;
+        crate::fields::fields_dict(py, &fields)
+    }
+
     /// Scripted actions for every environment (see Env.scripted_action).
     fn scripted_actions(&mut self, py: Python<'_>, policy: &str) -> PyResult<Vec<Py<PyAny>>> {
         let mut out = Vec::with_capacity(self.envs.len());

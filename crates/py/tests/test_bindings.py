@@ -469,3 +469,42 @@ def test_observations_are_reused_buffers_equal_to_fresh_copies():
     kept = {k: v.copy() for k, v in o2.items()}
     o3 = e.observe()
     assert o3["image"] is o["image"] and all(o3[k].tobytes() == kept[k].tobytes() for k in kept)
+
+
+@pytest.mark.parametrize(("category", "seed"), [("Microwave", 3), ("StorageFurniture", 1), ("Laptop", 2)])
+def test_articulation_flow_points_the_way_a_pull_opens_the_part(category, seed):
+    env = umpnet.Env(category, seed=seed, resolution=RES, task="exploration")
+    obs = env.reset()
+    f = env.articulation_fields()
+    assert f["goal_displacement"] is None
+    norms = np.linalg.norm(f["flow"], axis=-1)
+    assert f["movable"].sum() > 20 and (~f["movable"] & (obs["segmentation"] > 0)).sum() > 0
+    assert np.all(norms[~f["movable"]] == 0)
+    on = norms[f["movable"]]
+    assert np.all((np.abs(on - 1) < 1e-4) | (on == 0))
+    assert np.all((f["joint"] >= 0) == f["movable"])
+    row, col = env.scripted_action("oracle")
+    _, info = env.step_position(row, col)
+    assert info["valid"] and info["joint"] == f["joint"][row, col]
+    # Along the flow the part opens (the joint grows); against it, it closes
+    # (the training labels' thresholds: 0.1 rad / 0.05 m).
+    flow = [float(v) for v in f["flow"][row, col]]
+    _, opened, _ = env.step_direction(flow)
+    _, closed, _ = env.step_direction([-v for v in flow])
+    assert opened["r_dist"] > 0.05 and opened["train_aot"] == 1, opened
+    assert closed["r_dist"] > 0.05 and closed["train_aot"] == -1, closed
+
+
+def test_goal_displacement_moves_only_the_goal_part_and_stacks_in_vecenv():
+    env = umpnet.Env("Door", seed=1, resolution=RES, task="goal")
+    env.reset()
+    f = env.articulation_fields()
+    goal_joint = env.scene["goal"]["joint"]
+    moving = np.linalg.norm(f["goal_displacement"], axis=-1) > 1e-4
+    assert moving.sum() > 20
+    assert np.all(f["joint"][moving] == goal_joint)
+    vec = umpnet.VecEnv(2, resolution=RES, task="goal", seed=1)
+    vec.reset()
+    stacked = vec.articulation_fields()
+    assert stacked["flow"].shape == (2, *RES, 3) and stacked["goal_displacement"].shape == (2, *RES, 3)
+    assert stacked["movable"].dtype == bool and stacked["joint"].dtype == np.int32

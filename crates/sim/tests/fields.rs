@@ -116,8 +116,8 @@ fn goal_displacement_takes_the_goal_part_to_its_goal_place_and_nothing_else() {
         let jm = &env.model().joints[j];
         let (axis, origin) = env.articulation().joint_axis_in_world(j);
         let mut on_goal_part = 0;
-        for i in 0..disp.len() {
-            let d = Vec3::from(disp[i]);
+        for (i, d) in disp.iter().enumerate() {
+            let d = Vec3::from(*d);
             let Some(link) = link_of(frame.segmentation[i]) else {
                 assert_eq!(d, Vec3::ZERO);
                 continue;
