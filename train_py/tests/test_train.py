@@ -380,3 +380,66 @@ def test_position_from_another_run_stays_fixed_while_the_direction_nets_train(tm
         assert train.main([*args[:-1], str(path)]) == 2
         err = capsys.readouterr().err
         assert f"--position-from {path}" in err and message in err, err
+
+
+def _fields_data(seed: int, resets: int):
+    """Observations of seeded scenes with their simulated articulation flow."""
+    env = umpnet.VecEnv(
+        8, category=["Microwave", "StorageFurniture", "Door", "Laptop"], resolution=(48, 64), seed=seed, copy=True
+    )
+    images, flows = [], []
+    for _ in range(resets):
+        images.append(env.reset()["image"])
+        flows.append(env.articulation_fields()["flow"])
+    return np.concatenate(images), np.concatenate(flows)
+
+
+def test_the_auxiliary_flow_head_learns_the_articulation_flow_of_unseen_scenes():
+    import torch
+    from umpnet_train.models import PositionNet
+
+    collect.set_device(torch.device("cpu"))
+    torch.manual_seed(0)
+    images, flows = _fields_data(seed=0, resets=8)
+    held_images, held_flows = _fields_data(seed=1, resets=2)  # other instances, poses and joint states
+    net = PositionNet((8, 16, 32), fields=True)
+    opt = torch.optim.Adam(net.parameters(), lr=3e-3)
+
+    def held_out_cosine() -> float:
+        out = {}
+        net.eval()
+        with torch.no_grad():
+            train.flow_losses(net.forward_fields(torch.from_numpy(held_images))[1][:, :3], held_flows, out, "")
+        net.train()
+        return float(out["metric/flow_cosine"])
+
+    before = held_out_cosine()
+    rng = np.random.default_rng(0)
+    for _ in range(60):
+        idx = rng.choice(len(images), 16)
+        _, aux = net.forward_fields(torch.from_numpy(images[idx]))
+        loss = train.flow_losses(aux[:, :3], flows[idx], {}, "", aux[:, 3])
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    after = held_out_cosine()
+    # Measured: 0.23 before, 0.83 after 50 steps.
+    assert after > 0.6 and after > before + 0.3, (before, after)
+
+
+def test_training_with_auxiliary_fields_runs_and_exports_the_same_package_contract(tmp_path):
+    import torch
+
+    out, pkg = tmp_path / "run", tmp_path / "package"
+    args = ["--preset", "smoke", "--epochs", "2", "--aux-fields", "1", "--out", str(out), "--export", str(pkg)]
+    assert train.main(args) == 0
+    ck = torch.load(out / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert config_from_checkpoint(ck["config"]).aux_fields == 1.0
+    assert any(k.startswith("position.fields_head") for k in ck["model"])
+    assert any(k.startswith("encoder.flow_head") for k in ck["model"])
+    # The heads are for training only: the package is the one the runtime knows.
+    meta = json.loads((pkg / "model.json").read_text())
+    assert meta["export_check"]["max_abs_diff_onnx_vs_torch"] < 1e-3
+    assert umpnet.Policy(str(pkg)).resolution == (48, 64)
+    with pytest.raises(SystemExit):
+        train.parse_args(["--out", str(out), "--aux-fields", "1", "--ray", "2"])

@@ -171,6 +171,8 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
     pixels = choose_positions(model, obs, eps_pos, rng, cfg.random_grasp)
     # The environment's observation buffers are rewritten by every step: keep copies.
     first = obs["image"].copy()
+    fields = cfg.aux_fields > 0
+    first_flow = env.articulation_fields()["flow"] if fields else None
     t0 = time.perf_counter()
     obs, info = env.step_position(pixels)
     stats["sim_s"] += time.perf_counter() - t0
@@ -192,6 +194,7 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
             wanted = np.full(len(env), 1 if t < (length + 1) // 2 else -1)
         dirs, ranked = choose_directions(model, cfg.variant, obs, wanted, eps_dir, rng)
         before = {"image": obs["image"].copy(), "gripper_pixel": obs["gripper_pixel"].copy()}
+        before_flow = env.articulation_fields()["flow"] if fields else None
         if dense is not None:
             t0 = time.perf_counter()
             probe_dirs = dense_directions(ranked, cfg.dense_labels, rng)
@@ -205,7 +208,10 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
             # The Inverse model learns (s_t, s_t+1) -> a_t: its "reference" is the next observation.
             ref = replay.add_reference(obs["image"][i]) if cfg.variant == "inverse" else refs[i]
             aot = int(labels[aot_key][i])
-            replay.add_direction(before["image"][i], before["gripper_pixel"][i], dirs[i], labels["r_dist"][i], aot, ref)
+            flow = None if before_flow is None else before_flow[i]
+            replay.add_direction(
+                before["image"][i], before["gripper_pixel"][i], dirs[i], labels["r_dist"][i], aot, ref, flow
+            )
             moved_any[i] |= bool(labels[moved_key][i])
             stats["aot_counts"][aot + 1] += 1
             if dense is not None and probed["active"][i]:
@@ -219,6 +225,8 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
             heading = contradictory_heading(heading, t, length, np.asarray(sinfo["reached_boundary"]))
         stats["steps"] += int(record.sum())
     for i in range(len(env)):
-        replay.add_position(first[i], pixels[i], int(valid[i] and moved_any[i]))
+        replay.add_position(
+            first[i], pixels[i], int(valid[i] and moved_any[i]), None if first_flow is None else first_flow[i]
+        )
     stats["positions"] += len(env)
     stats["position_success"] += int((valid & moved_any).sum())

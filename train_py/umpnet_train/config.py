@@ -34,6 +34,10 @@ class Config:
     # 0: only the executed action, as the paper.
     dense_labels: int = 0
     dense_states: int = 8  # states per dense batch (all their labels in one encoder pass)
+    # Dense articulation supervision (beyond the paper; FlowBot3D's articulation flow):
+    # weight of the auxiliary losses that teach the position net each pixel's flow and
+    # movable mask, and the direction encoder's per-pixel embedding the flow. 0: off.
+    aux_fields: float = 0.0
     # Exploratory grasps: "released" (the released code's rule: a uniform pixel,
     # kept above the floor or with probability 0.1) or "object" (a uniform
     # object pixel: every grasp can move something; the smoke preset's, whose

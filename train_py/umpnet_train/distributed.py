@@ -42,10 +42,11 @@ class Recorder:
         self.references += 1
         return self.references - 1
 
-    def add_direction(self, image, pixel, direction, r_dist, aot, ref):
+    # `flow` is always None here: training refuses --aux-fields with --ray.
+    def add_direction(self, image, pixel, direction, r_dist, aot, ref, flow=None):
         self.ops.append(("dir", np.asarray(image, np.float16), pixel, direction, r_dist, aot, ref))
 
-    def add_position(self, image, pixel, label):
+    def add_position(self, image, pixel, label, flow=None):
         self.ops.append(("pos", np.asarray(image, np.float16), pixel, label))
 
     # DenseReplay's interface.

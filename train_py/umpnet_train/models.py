@@ -60,6 +60,10 @@ class UNet(nn.Module):
         self.context = nn.Linear(widths[-1], cout) if global_context else None
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.forward_with_features(x)[0]
+
+    def forward_with_features(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The output and the full-resolution features the head reads."""
         skips = []
         for d in self.down:
             x = d(x)
@@ -70,20 +74,30 @@ class UNet(nn.Module):
             skip = skips.pop()
             x = F.interpolate(x, size=skip.shape[-2:], mode="bilinear", align_corners=False)
             x = up(torch.cat([x, skip], dim=1))
-        return self.head(x) if context is None else self.head(x) + context
+        return (self.head(x) if context is None else self.head(x) + context), x
 
 
 class PositionNet(nn.Module):
-    """Per-pixel two-class output: will acting here move the object?"""
+    """Per-pixel two-class output: will acting here move the object?
 
-    def __init__(self, widths: tuple[int, ...]):
+    With `fields`, an auxiliary head on the same features predicts each pixel's
+    articulation flow (3) and whether it is on a movable part (1 logit); the
+    exported network (`forward`) stays the two-class map."""
+
+    def __init__(self, widths: tuple[int, ...], fields: bool = False):
         super().__init__()
         self.norm = Normalize()
         self.unet = UNet(CHANNELS, widths, 2)
+        self.fields_head = nn.Conv2d(widths[0], 4, 1) if fields else None
 
     def forward(self, observation: torch.Tensor) -> torch.Tensor:
         """observation N x H x W x 10 -> logits N x 2 x H x W."""
         return self.unet(self.norm(observation.permute(0, 3, 1, 2)))
+
+    def forward_fields(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(logits N x 2 x H x W, fields N x 4 x H x W: flow xyz, movable logit)."""
+        logits, features = self.unet.forward_with_features(self.norm(observation.permute(0, 3, 1, 2)))
+        return logits, self.fields_head(features)
 
 
 def features_at(fmap: torch.Tensor, pixel: torch.Tensor) -> torch.Tensor:
@@ -121,9 +135,15 @@ class DirectionEncoder(nn.Module):
     global context vector; "plain" is the network of the models shipped before
     it (kept so their checkpoints still load)."""
 
-    def __init__(self, widths: tuple[int, ...], embedding: int, use_reference: bool = True, net: str = "context"):
+    def __init__(
+        self, widths: tuple[int, ...], embedding: int, use_reference: bool = True, net: str = "context",
+        fields: bool = False,
+    ):  # fmt: skip
         super().__init__()
         self.use_reference = use_reference
+        # Auxiliary: the flow read linearly from the Dist branch's per-pixel
+        # embedding, so the embedding the decoders see encodes how the part moves.
+        self.flow_head = nn.Conv2d(embedding, 3, 1) if fields else None
         self.difference = Difference() if net == "context" and use_reference else None
         context = net == "context"
         self.norm1 = Normalize()
@@ -132,7 +152,8 @@ class DirectionEncoder(nn.Module):
         aot_in = CHANNELS * (2 if use_reference else 1) + (0 if self.difference is None else DIFF_CHANNELS)
         self.aot = UNet(aot_in, widths, embedding, context)
 
-    def forward(self, observation, reference, pixel):
+    def maps(self, observation, reference):
+        """Per-pixel embeddings (N x E x H x W) of the Dist and AoT branches."""
         cur = observation.permute(0, 3, 1, 2)
         dist_in = self.norm1(cur)
         if self.use_reference:
@@ -142,7 +163,16 @@ class DirectionEncoder(nn.Module):
                 aot_in = torch.cat([aot_in, self.difference(cur, ref)], dim=1)
         else:
             aot_in = self.norm2(cur) + 0.0 * reference.sum()
-        return features_at(self.dist(dist_in), pixel), features_at(self.aot(aot_in), pixel)
+        return self.dist(dist_in), self.aot(aot_in)
+
+    def forward(self, observation, reference, pixel):
+        dist_map, aot_map = self.maps(observation, reference)
+        return features_at(dist_map, pixel), features_at(aot_map, pixel)
+
+    def forward_fields(self, observation, reference, pixel):
+        """As `forward`, plus the flow predicted at every pixel (N x 3 x H x W)."""
+        dist_map, aot_map = self.maps(observation, reference)
+        return features_at(dist_map, pixel), features_at(aot_map, pixel), self.flow_head(dist_map)
 
 
 class DirectionDecoder(nn.Module):
@@ -193,9 +223,10 @@ def uses_reference(variant: str) -> bool:
 class UMPNet(nn.Module):
     def __init__(self, cfg):
         super().__init__()
-        self.position = PositionNet(tuple(cfg.position_widths))
+        fields = getattr(cfg, "aux_fields", 0.0) > 0
+        self.position = PositionNet(tuple(cfg.position_widths), fields)
         self.encoder = DirectionEncoder(
-            tuple(cfg.direction_widths), cfg.embedding, uses_reference(cfg.variant), cfg.direction_net
+            tuple(cfg.direction_widths), cfg.embedding, uses_reference(cfg.variant), cfg.direction_net, fields
         )
         self.decoder = DirectionDecoder(
             cfg.embedding, cfg.action_embedding, cfg.variant, cfg.direction_net, cfg.decoder_hidden

@@ -31,7 +31,10 @@ _RINGS = ("refs", "pos", "dir")
 
 
 class Replay:
-    def __init__(self, capacity: int, shape: tuple[int, int, int]):
+    """With `fields`, each position and direction sample also keeps its image's
+    articulation flow (H x W x 3, the simulator's dense label; `aux_fields`)."""
+
+    def __init__(self, capacity: int, shape: tuple[int, int, int], fields: bool = False):
         h, w, c = shape
         self.refs = Ring(capacity)
         self.ref_images = np.zeros((capacity, h, w, c), np.float16)
@@ -49,33 +52,42 @@ class Replay:
         self.dir_aot = np.zeros(capacity, np.int64)
         self.dir_ref = np.zeros(capacity, np.int64)
         self.dir_ref_gen = np.zeros(capacity, np.int64)
+        self.pos_flow = np.zeros((capacity, h, w, 3), np.float16) if fields else None
+        self.dir_flow = np.zeros((capacity, h, w, 3), np.float16) if fields else None
 
     def add_reference(self, image) -> tuple[int, int]:
         i, g = self.refs.slot()
         self.ref_images[i] = image
         return i, g
 
-    def add_position(self, image, pixel, label: int):
+    def add_position(self, image, pixel, label: int, flow=None):
         i, _ = self.pos.slot()
         self.pos_images[i], self.pos_pixels[i], self.pos_labels[i] = image, pixel, label
+        if self.pos_flow is not None:
+            self.pos_flow[i] = 0.0 if flow is None else flow
 
-    def add_direction(self, image, pixel, direction, r_dist: float, aot: int, ref: tuple[int, int]):
+    def add_direction(self, image, pixel, direction, r_dist: float, aot: int, ref: tuple[int, int], flow=None):
         i, _ = self.dir.slot()
+        if self.dir_flow is not None:
+            self.dir_flow[i] = 0.0 if flow is None else flow
         self.dir_images[i], self.dir_pixels[i], self.dir_vectors[i] = image, pixel, direction
         self.dir_dist[i], self.dir_aot[i] = r_dist, aot
         self.dir_ref[i], self.dir_ref_gen[i] = ref
 
-    def sample_positions(self, rng: np.random.Generator, batch: int):
-        """Balanced 1:1 successful/unsuccessful positions (as far as the buffer allows)."""
+    def sample_positions(self, rng: np.random.Generator, batch: int, flows: bool = False):
+        """Balanced 1:1 successful/unsuccessful positions (as far as the buffer
+        allows); with `flows`, their images' flow fields last."""
         n = self.pos.size
         labels = self.pos_labels[:n]
         idx = _balanced(rng, [np.flatnonzero(labels == k) for k in (1, 0)], batch)
-        return self.pos_images[idx], self.pos_pixels[idx], self.pos_labels[idx]
+        out = (self.pos_images[idx], self.pos_pixels[idx], self.pos_labels[idx])
+        return (*out, self.pos_flow[idx]) if flows else out
 
-    def sample_directions(self, rng: np.random.Generator, batch: int, groups: str = "aot"):
+    def sample_directions(self, rng: np.random.Generator, batch: int, groups: str = "aot", flows: bool = False):
         """Balanced over `groups`: "aot" 1:1:1 over AoT classes, "binary" 1:1
         moved / not moved, "moved" only samples that moved the object; skips
-        samples whose reference was overwritten."""
+        samples whose reference was overwritten. With `flows`, the images' flow
+        fields last."""
         n = self.dir.size
         alive = self.refs.generation[self.dir_ref[:n]] == self.dir_ref_gen[:n]
         aot = self.dir_aot[:n]
@@ -88,7 +100,7 @@ class Replay:
         else:
             raise ValueError(f"groups is {groups!r}, expected aot, binary or moved")
         idx = _balanced(rng, pools, batch)
-        return (
+        out = (
             self.dir_images[idx],
             self.ref_images[self.dir_ref[idx]],
             self.dir_pixels[idx],
@@ -96,6 +108,7 @@ class Replay:
             self.dir_dist[idx],
             self.dir_aot[idx],
         )
+        return (*out, self.dir_flow[idx]) if flows else out
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {k: v for k, v in vars(self).items() if isinstance(v, np.ndarray)}

@@ -71,12 +71,34 @@ def direction_losses(cfg, pred_dist, logits, dist, aot, weights, prefix, out):
     return total
 
 
+def flow_losses(pred_flow, flow, out, prefix, pred_movable=None):
+    """Auxiliary articulation losses: 1 - cosine between predicted and true flow
+    on movable pixels, and, with `pred_movable`, the movable mask (BCE)."""
+    target = to_torch(flow).permute(0, 3, 1, 2)  # N x 3 x H x W
+    movable = target.norm(dim=1) > 0.5
+    total = torch.zeros((), device=device())
+    if movable.any():
+        cos = F.cosine_similarity(pred_flow, target, dim=1, eps=1e-6)[movable]
+        out[f"loss/{prefix}flow"] = (1.0 - cos).mean()
+        out[f"metric/{prefix}flow_cosine"] = cos.mean().detach()
+        total = total + out[f"loss/{prefix}flow"]
+    if pred_movable is not None:
+        out[f"loss/{prefix}movable"] = F.binary_cross_entropy_with_logits(pred_movable, movable.float())
+        total = total + out[f"loss/{prefix}movable"]
+    return total
+
+
 def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=True):
     out = {}
     total = torch.zeros((), device=device())
-    imgs, pix, lab = replay.sample_positions(rng, cfg.batch_position)
-    if train_position and len(lab):
+    fields = cfg.aux_fields > 0
+    imgs, pix, lab, *pos_flow = replay.sample_positions(rng, cfg.batch_position, flows=fields)
+    if train_position and len(lab) and fields:
+        logits, aux = model.position.forward_fields(to_torch(imgs))
+        total = total + cfg.aux_fields * flow_losses(aux[:, :3], pos_flow[0], out, "position_", aux[:, 3])
+    elif train_position and len(lab):
         logits = model.position(to_torch(imgs))
+    if train_position and len(lab):
         at = logits[torch.arange(len(lab), device=device()), :, to_long(pix[:, 0]), to_long(pix[:, 1])]
         target = to_long(lab)
         out["loss/position"] = F.cross_entropy(at, target)
@@ -88,8 +110,16 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
         out["loss/total"] = total
         return out
     groups = {"where2act": "binary", "inverse": "moved"}.get(cfg.variant, "aot")
-    imgs, refs, pix, dirs, dist, aot = replay.sample_directions(rng, cfg.batch_direction, groups)
-    if len(aot) and cfg.variant == "inverse":
+    imgs, refs, pix, dirs, dist, aot, *dir_flow = replay.sample_directions(
+        rng, cfg.batch_direction, groups, flows=fields
+    )
+    if len(aot) and fields and cfg.variant != "inverse":
+        de, ae, pred_flow = model.encoder.forward_fields(to_torch(imgs), to_torch(refs), to_long(pix))
+        total = total + cfg.aux_fields * flow_losses(pred_flow, dir_flow[0], out, "direction_")
+        pred_dist, logits = model.decoder(de, ae, to_torch(dirs))
+        weights = torch.full((len(aot),), 1.0 / len(aot), device=device())  # already balanced by sampling
+        total = total + direction_losses(cfg, pred_dist, logits, dist, aot, weights, "", out)
+    elif len(aot) and cfg.variant == "inverse":
         pred = model.inverse(to_torch(imgs), to_torch(refs), to_long(pix))
         out["loss/inverse"] = F.mse_loss(pred, to_torch(dirs))
         out["metric/inverse_cosine"] = F.cosine_similarity(pred, to_torch(dirs), dim=1).mean()
@@ -211,6 +241,13 @@ def parse_args(argv=None):
         metavar="K",
         help="also simulate K directions at every visited state and train on all of them (0: off, the paper)",
     )
+    p.add_argument(
+        "--aux-fields",
+        type=float,
+        metavar="WEIGHT",
+        help="weight of the auxiliary articulation-flow losses on the position net and the direction "
+        "encoder (the simulator's dense per-pixel labels; 0: off, the paper)",
+    )
     p.add_argument("--device", help="auto, cpu or cuda")
     p.add_argument("--direction-widths", help="DirectionNet U-Net widths per level, e.g. 8,16,32,64")
     p.add_argument(
@@ -235,6 +272,10 @@ def parse_args(argv=None):
     a = p.parse_args(argv)
     if a.ray < 0:
         p.error(f"--ray {a.ray}: expected 0 (local collection) or a number of actors")
+    if a.aux_fields is not None and not (a.aux_fields >= 0 and a.aux_fields < 1e3):
+        p.error(f"--aux-fields {a.aux_fields}: expected a weight in [0, 1000)")
+    if a.ray and a.aux_fields:
+        p.error("--aux-fields collects the fields in this process: use it without --ray")
     cfg = make_config(
         a.preset,
         variant=a.variant,
@@ -247,6 +288,7 @@ def parse_args(argv=None):
         physics=a.physics,
         labels=a.labels,
         dense_labels=a.dense_labels,
+        aux_fields=a.aux_fields,
         device=a.device,
         save_replay=a.save_replay,
         direction_widths=_widths(p, a.direction_widths),
@@ -369,7 +411,7 @@ def main(argv=None) -> int:
             renderer=cfg.renderer,
             physics=cfg.physics,
         )
-    replay = Replay(cfg.replay_size, (cfg.height, cfg.width, 10))
+    replay = Replay(cfg.replay_size, (cfg.height, cfg.width, 10), fields=cfg.aux_fields > 0)
     # Dense states keep one image for K labels: a quarter of the buffer's states.
     dense = (
         DenseReplay(max(cfg.replay_size // 4, 1), (cfg.height, cfg.width, 10), cfg.dense_labels)
