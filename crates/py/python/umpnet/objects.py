@@ -656,8 +656,8 @@ def main(argv: list[str] | None = None) -> int:
     common.add_argument("--force", action="store_true", help="replace an object already in --out")
     common.add_argument("--json", action="store_true", help="print what was done as JSON")
     one = sub.add_parser("import-mjcf", parents=[common], help="import one MJCF file")
-    one.add_argument("file", type=Path)
-    one.add_argument("--name", help="the object's folder name (default: the file's stem)")
+    one.add_argument("file", type=Path, help="an MJCF file, or a <mujocoinclude> fragment")
+    one.add_argument("--name", help="the object's folder name (default: --body, else the file's stem)")
     one.add_argument("--body", help="import only this body's subtree (one appliance out of a scene file)")
     one.add_argument("--yaw", type=float, default=0.0, help="turn the object about z (degrees) to face -y")
     sub.add_parser(
