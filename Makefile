@@ -7,7 +7,7 @@ export XDG_RUNTIME_DIR ?= /tmp
 FIXTURE := $(CURDIR)/target/fixture
 export UMPNET_FIXTURE := $(FIXTURE)
 
-.PHONY: install install-runtime build py fixture demo eval-baselines eval-objects train-baselines test test-rerun lint lint-rerun test-rust test-python mutants mutants-ci clean
+.PHONY: install install-runtime build py fixture demo eval-baselines eval-objects eval-fields-ablation train-baselines test test-rerun lint lint-rerun test-rust test-python mutants mutants-ci clean
 
 install:
 	@bash scripts/install.sh all
@@ -63,6 +63,18 @@ eval-objects: build py
 	$(UMPNET) eval --task goal --objects data/external --episodes-per-category $(OBJECT_EPISODES) --policies umpnet,random,oracle --out out/external-goal --force
 	$(UMPNET) eval --task exploration --objects data/external --episodes-per-category $(OBJECT_EPISODES) --policies umpnet,random,oracle --out out/external-exploration --force
 	$(PY) scripts/objects_table.py
+
+# The dense-articulation ablation: umpnet-300 and umpnet-300-fields (the same
+# recipe and budget, plus --aux-fields 1) on the test categories and the
+# Meta-World objects, then their paired differences (scripts/ablation_table.py).
+ABLATION := umpnet-300=$(B)/umpnet-300,umpnet-300-fields=$(B)/umpnet-300-fields
+eval-fields-ablation: build py
+	$(PY) -m umpnet.objects metaworld --out data/external --force
+	for t in goal exploration; do \
+	  $(UMPNET) eval --task $$t --split test --episodes-per-category $(EPISODES) --policies $(ABLATION) --out out/fields-$$t-test --force && \
+	  $(UMPNET) eval --task $$t --objects data/external --episodes-per-category $(EPISODES) --policies $(ABLATION) --out out/fields-$$t-objects --force || exit 1; \
+	done
+	$(PY) scripts/ablation_table.py --base umpnet-300 --variant umpnet-300-fields out/fields-goal-test out/fields-exploration-test out/fields-goal-objects out/fields-exploration-objects
 
 # umpnet and every baseline with one recipe and one budget (cpu-small, 300 epochs,
 # dense labels, reference physics, seed 0): an estimated 45 minutes per variant here,
