@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections import defaultdict
 from pathlib import Path
+
+from baselines_table import stratified
 
 # task -> (metric, key in an episode's metrics, higher is better)
 METRICS = {
@@ -29,20 +30,6 @@ METRICS = {
         ("single action effect", "single_action_effect", True),
     ],
 }
-
-
-def stratified(by_scene: dict[tuple[str, int], float]) -> tuple[float, float]:
-    rows: dict[str, list[float]] = defaultdict(list)
-    for (row, _), v in by_scene.items():
-        rows[row].append(v)
-    if not rows:
-        return math.nan, math.nan
-    mean = sum(sum(v) / len(v) for v in rows.values()) / len(rows)
-    var = 0.0
-    for v in rows.values():
-        m = sum(v) / len(v)
-        var += (sum((x - m) ** 2 for x in v) / max(len(v) - 1, 1)) / len(v)
-    return mean, 1.96 * math.sqrt(var) / len(rows)
 
 
 def main(argv: list[str] | None = None) -> int:

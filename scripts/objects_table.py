@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections import defaultdict
 from pathlib import Path
+
+from baselines_table import stratified
 
 # column: (task, value of an episode, higher is better)
 COLUMNS = {
@@ -36,27 +37,13 @@ def load(path: Path) -> dict:
         return json.load(f)
 
 
-def stratified(groups: dict[str, list[float]]) -> tuple[float, float]:
-    """Mean over groups of their means, and the half-width of its 95% interval."""
-    k = len(groups)
-    if k == 0:
-        return math.nan, math.nan
-    mean = sum(sum(v) / len(v) for v in groups.values()) / k
-    var = 0.0
-    for v in groups.values():
-        m = sum(v) / len(v)
-        s2 = sum((x - m) ** 2 for x in v) / (len(v) - 1) if len(v) > 1 else 0.0
-        var += s2 / len(v)
-    return mean, 1.96 * math.sqrt(var) / k
-
-
 def values(results: dict[str, dict]) -> dict:
-    """(column, policy) -> object -> per-episode values."""
-    out: dict = defaultdict(lambda: defaultdict(list))
+    """(column, policy) -> (object, scene index) -> the episode's value."""
+    out: dict = defaultdict(dict)
     for column, (task, get) in COLUMNS.items():
         for o in results[task]["episodes"]:
             if o.get("episode") is not None:
-                out[column, o["policy"]][o["object"]].append(get(o["episode"]))
+                out[column, o["policy"]][o["object"], o["index"]] = get(o["episode"])
     return out
 
 
@@ -77,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
             for pol in policies:
                 cells = []
                 for c in COLUMNS:
-                    mean, half = stratified({obj: v[c, pol][obj]})
+                    mean, half = stratified({k: x for k, x in v[c, pol].items() if k[0] == obj})
                     cells.append(f"{mean:.2f} ± {half:.2f}")
                 print(f"| {obj} | {pol} | {' | '.join(cells)} |")
         return 0

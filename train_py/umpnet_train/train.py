@@ -113,19 +113,19 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
     imgs, refs, pix, dirs, dist, aot, *dir_flow = replay.sample_directions(
         rng, cfg.batch_direction, groups, flows=fields
     )
-    if len(aot) and fields and cfg.variant != "inverse":
-        de, ae, pred_flow = model.encoder.forward_fields(to_torch(imgs), to_torch(refs), to_long(pix))
-        total = total + cfg.aux_fields * flow_losses(pred_flow, dir_flow[0], out, "direction_")
-        pred_dist, logits = model.decoder(de, ae, to_torch(dirs))
-        weights = torch.full((len(aot),), 1.0 / len(aot), device=device())  # already balanced by sampling
-        total = total + direction_losses(cfg, pred_dist, logits, dist, aot, weights, "", out)
-    elif len(aot) and cfg.variant == "inverse":
+    if len(aot) and cfg.variant == "inverse":
         pred = model.inverse(to_torch(imgs), to_torch(refs), to_long(pix))
         out["loss/inverse"] = F.mse_loss(pred, to_torch(dirs))
         out["metric/inverse_cosine"] = F.cosine_similarity(pred, to_torch(dirs), dim=1).mean()
         total = total + out["loss/inverse"]
     elif len(aot):
-        pred_dist, logits = model.direction(to_torch(imgs), to_torch(refs), to_long(pix), to_torch(dirs))
+        obs_t, refs_t, pix_t = to_torch(imgs), to_torch(refs), to_long(pix)
+        if fields:
+            de, ae, pred_flow = model.encoder.forward_fields(obs_t, refs_t, pix_t)
+            total = total + cfg.aux_fields * flow_losses(pred_flow, dir_flow[0], out, "direction_")
+        else:
+            de, ae = model.encoder(obs_t, refs_t, pix_t)
+        pred_dist, logits = model.decoder(de, ae, to_torch(dirs))
         weights = torch.full((len(aot),), 1.0 / len(aot), device=device())  # already balanced by sampling
         total = total + direction_losses(cfg, pred_dist, logits, dist, aot, weights, "", out)
     batch = dense.sample(rng, cfg.dense_states, replay.refs, replay.ref_images) if dense is not None else None
