@@ -103,6 +103,8 @@ test-python: build py fixture
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py
 	# Ray on a local cluster: sharded evaluation, retries.
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_ray.py
+	# Evaluation at any size: flat memory, resume after a kill, merging many shards.
+	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_eval_scale.py
 	# Objects made elsewhere: the MJCF importer (MuJoCo) on Meta-World, and eval --objects.
 	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_objects.py
 	# The differential suite: the `reference` physics against PyBullet.

@@ -20,7 +20,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-from baselines_table import stratified
+from baselines_table import episodes, stratified
 
 # task -> (metric, key in an episode's metrics, higher is better)
 METRICS = {
@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
         task = results["summary"]["task"]
         for name, key, higher in METRICS[task]:
             by: dict[str, dict] = defaultdict(dict)
-            for e in results["episodes"]:
+            for e in episodes(path):
                 if e.get("episode") is None:
                     continue
                 row = e.get("category") or e.get("object")

@@ -38,7 +38,20 @@ def load(path: Path) -> dict:
     if not path.is_file():
         sys.exit(f"error: {path} not found: run `make eval-baselines` first")
     with path.open() as f:
-        return json.load(f)
+        results = json.load(f)
+    results["episodes"] = list(episodes(path))
+    return results
+
+
+def episodes(results_json: Path):
+    """The episodes of an `umpnet eval --out` run, one at a time, from the
+    episodes file its results.json names."""
+    name = json.loads(results_json.read_text()).get("episodes_file")
+    if not name:
+        sys.exit(f"error: {results_json} names no episodes file; run the evaluation again")
+    with (results_json.parent / name).open() as f:
+        for line in f:
+            yield json.loads(line)
 
 
 def values(results: dict, key: str) -> dict[str, dict[tuple[str, int], float]]:

@@ -19,7 +19,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-from baselines_table import stratified
+from baselines_table import episodes, stratified
 
 # column: (task, value of an episode, higher is better)
 COLUMNS = {
@@ -34,7 +34,9 @@ def load(path: Path) -> dict:
     if not path.is_file():
         sys.exit(f"error: {path} not found: run `make eval-objects` first")
     with path.open() as f:
-        return json.load(f)
+        results = json.load(f)
+    results["episodes"] = list(episodes(path))
+    return results
 
 
 def values(results: dict[str, dict]) -> dict:

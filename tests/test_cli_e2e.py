@@ -320,7 +320,8 @@ def test_sharded_eval_merges_to_the_unsharded_run_byte_for_byte(tmp_path):
         d = tmp_path / f"shard{k}"
         out = run(*common, "--shard", f"{k}/3", "--out", str(d)).stdout
         assert f"shard {k}/3" in out
-        assert sorted(p.name for p in d.iterdir()) == ["results.json"]  # no partial tables
+        # The shard's episodes and summary, no partial tables.
+        assert sorted(p.name for p in d.iterdir()) == ["episodes.jsonl", "results.json", "run.json"]
         summary = json.loads((d / "results.json").read_text())["summary"]
         assert summary["shard"] == f"{k}/3" and summary["models"]["umpnet"].startswith("sha256:")
         shards.append(str(d))
@@ -329,8 +330,9 @@ def test_sharded_eval_merges_to_the_unsharded_run_byte_for_byte(tmp_path):
     assert _without_wall_time(merged / "results.json") == _without_wall_time(whole / "results.json")
     for name in ("results.csv", "results.md", "results.tex", "table.txt", "curve.png"):
         assert (merged / name).read_bytes() == (whole / name).read_bytes(), name
-    n = len(json.loads((whole / "results.json").read_text())["episodes"])
-    assert n == 3 * 3 * 3  # categories x scenes x (random, umpnet, oracle)
+    assert (merged / "episodes.jsonl").read_bytes() == (whole / "episodes.jsonl").read_bytes()
+    n = len((whole / "episodes.jsonl").read_text().splitlines())
+    assert n == json.loads((whole / "results.json").read_text())["summary"]["episodes"] == 3 * 3 * 3
 
     # Incomplete, repeated or foreign shards are refused with the reason.
     p = run("eval", "merge", shards[0], shards[1], check=False)  # shards 3 and 1
@@ -386,7 +388,6 @@ def test_each_policy_sees_its_own_resolution_so_listing_others_changes_nothing(t
     p = run(*common, "--policies", f"umpnet={fixture},oracle,random", "--out", str(tmp_path / "b"))
     meta = json.loads(Path(fixture, "model.json").read_text())["input"]
     assert "images: oracle, random at 120x160" in p.stdout and f"umpnet at {meta['height']}x{meta['width']}" in p.stdout
-    a = json.loads((tmp_path / "a" / "results.json").read_text())
     b = json.loads((tmp_path / "b" / "results.json").read_text())
     assert b["summary"]["resolutions"] == {
         "oracle": [120, 160],
@@ -394,11 +395,12 @@ def test_each_policy_sees_its_own_resolution_so_listing_others_changes_nothing(t
         "umpnet": [meta["height"], meta["width"]],
     }
 
-    def episodes(r, policy):
-        return [json.dumps(e, sort_keys=True) for e in r["episodes"] if e["policy"] == policy]
+    def episodes(d, policy):
+        lines = (tmp_path / d / "episodes.jsonl").read_text().splitlines()
+        return [line for line in lines if json.loads(line)["policy"] == policy]
 
     for policy in ("random", "oracle"):
-        assert episodes(a, policy) == episodes(b, policy) and len(episodes(a, policy)) == 6, policy
+        assert episodes("a", policy) == episodes("b", policy) and len(episodes("a", policy)) == 6, policy
 
 
 def test_readme_infer_example_runs_as_written(tmp_path):

@@ -32,7 +32,7 @@ def test_ray_eval_on_a_local_cluster_equals_the_single_run(tmp_path):
     assert len(re.findall(r"shard \d/3 done", p.stderr)) == 3  # progress, one line per shard
     merged = tmp_path / "ray"
     assert without_wall_time(merged / "results.json") == without_wall_time(whole / "results.json")
-    for name in ("results.csv", "results.md", "results.tex", "table.txt", "curve.png"):
+    for name in ("episodes.jsonl", "results.csv", "results.md", "results.tex", "table.txt", "curve.png"):
         assert (merged / name).read_bytes() == (whole / name).read_bytes(), name
     assert len(list((merged / "shards").iterdir())) == 3
     summary = json.loads((merged / "results.json").read_text())["summary"]
@@ -59,6 +59,10 @@ def test_a_failing_shard_is_retried_then_reported_by_name(tmp_path):
     assert "shard 1/3 done" in p.stderr and "shard 3/3 done" in p.stderr  # 1/3 recovered on its retry
     assert (marks / "once").exists()
     assert not (tmp_path / "ray" / "results.json").exists()  # no partial report
+    # The shards that finished are kept, whole.
+    kept = sorted(d.name for d in (tmp_path / "ray" / "shards").iterdir())
+    assert kept == ["0001-of-0003", "0003-of-0003"], kept
+    assert (tmp_path / "ray" / "shards" / kept[0] / "episodes.jsonl").stat().st_size > 0
 
 
 def test_bad_arguments_fail_before_the_cluster_starts():

@@ -13,6 +13,7 @@ mod rrd;
 #[cfg(not(feature = "rerun"))]
 #[path = "rrd_disabled.rs"]
 mod rrd;
+mod signals;
 mod text;
 
 use anyhow::Result;
@@ -236,6 +237,8 @@ fn main() {
     if let Err(e) = result {
         let code = if e.downcast_ref::<Usage>().is_some() {
             2
+        } else if e.downcast_ref::<signals::Interrupted>().is_some() {
+            signals::INTERRUPTED
         } else {
             1
         };

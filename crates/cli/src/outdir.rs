@@ -18,18 +18,43 @@ impl Drop for Claim {
     }
 }
 
+/// Whether the lock names a process that no longer runs (a run killed before
+/// it could remove its lock). A lock without a process id, or on a system
+/// without /proc, is taken to be held.
+fn owner_is_gone(lock: &Path) -> bool {
+    let Ok(text) = std::fs::read_to_string(lock) else {
+        return false;
+    };
+    let Ok(pid) = text.trim().parse::<u32>() else {
+        return false;
+    };
+    Path::new("/proc/self").exists() && !Path::new(&format!("/proc/{pid}")).exists()
+}
+
 /// Creates `dir` if needed and locks it for this process. Without `force`,
 /// refuses a folder that already holds any of `owned` (the files this command
 /// writes), or anything at all when `owned` is empty.
 pub fn claim(dir: &Path, force: bool, owned: &[&str]) -> Result<Claim> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     let lock = dir.join(LOCK);
-    match std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&lock)
+    let create = || {
+        use std::io::Write;
+        let mut f = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&lock)?;
+        // The owner's process id: a later run can tell a lock whose owner died.
+        writeln!(f, "{}", std::process::id())
+    };
+    let mut made = create();
+    if matches!(&made, Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists)
+        && owner_is_gone(&lock)
     {
-        Ok(_) => {}
+        let _ = std::fs::remove_file(&lock);
+        made = create();
+    }
+    match made {
+        Ok(()) => {}
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
             return Err(usage(format!(
                 "{}: another umpnet run is writing here ({} exists; delete it if no run is)",

@@ -14,6 +14,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::SimEnv;
 use umpnet_sim::objects::{Category, InstanceSplit, nth_instance};
@@ -276,8 +277,9 @@ impl Shard {
         self.count == 1
     }
 
-    fn holds(self, position: usize) -> bool {
-        position % self.count as usize == (self.index - 1) as usize
+    /// Whether the scene at `position` of the canonical order is this shard's.
+    pub fn holds(self, position: u64) -> bool {
+        position % u64::from(self.count.max(1)) == u64::from(self.index.saturating_sub(1))
     }
 }
 
@@ -304,17 +306,52 @@ impl std::str::FromStr for Shard {
     }
 }
 
+impl Shard {
+    /// How many of the `rows x per_row` scenes this shard holds.
+    pub fn scene_count(self, rows: u64, per_row: u32) -> u64 {
+        let total = rows.saturating_mul(u64::from(per_row));
+        let first = u64::from(self.index.saturating_sub(1));
+        if total > first {
+            (total - first).div_ceil(u64::from(self.count.max(1)))
+        } else {
+            0
+        }
+    }
+
+    /// This shard's scene `i` of `rows x per_row`, as (row number, index),
+    /// in canonical order.
+    pub fn scene_at(self, rows: u64, per_row: u32, i: u64) -> Option<(u64, u32)> {
+        if i >= self.scene_count(rows, per_row) {
+            return None;
+        }
+        let position = u64::from(self.index.saturating_sub(1))
+            .checked_add(i.checked_mul(u64::from(self.count))?)?;
+        let per_row = u64::from(per_row);
+        Some((position / per_row, u32::try_from(position % per_row).ok()?))
+    }
+}
+
 impl BenchConfig {
+    /// How many scenes this configuration runs (its shard's share). Counted,
+    /// never listed: a run of billions of scenes starts at once.
+    pub fn scene_count(&self) -> u64 {
+        self.shard
+            .scene_count(self.rows.len() as u64, self.episodes_per_category)
+    }
+
+    /// Scene `i` of this configuration (`i < scene_count()`), as (row,
+    /// index), in the canonical order that results are reported in.
+    pub fn scene_at(&self, i: u64) -> Option<(&Row, u32)> {
+        let (row, k) =
+            self.shard
+                .scene_at(self.rows.len() as u64, self.episodes_per_category, i)?;
+        Some((self.rows.get(usize::try_from(row).ok()?)?, k))
+    }
+
     /// The scenes this configuration runs, as (row, index), in the
-    /// canonical order that results are reported in.
-    pub fn scenes(&self) -> Vec<(&Row, u32)> {
-        self.rows
-            .iter()
-            .flat_map(|r| (0..self.episodes_per_category).map(move |k| (r, k)))
-            .enumerate()
-            .filter(|(position, _)| self.shard.holds(*position))
-            .map(|(_, scene)| scene)
-            .collect()
+    /// canonical order that results are reported in; generated lazily.
+    pub fn scenes(&self) -> impl Iterator<Item = (&Row, u32)> + '_ {
+        (0..self.scene_count()).filter_map(|i| self.scene_at(i))
     }
 }
 
@@ -332,22 +369,67 @@ pub struct EpisodeOutcome {
     pub error: Option<String>,
 }
 
-/// Runs every policy on every scene; `progress` is called after each scene.
+/// Runs every policy on every scene and returns the outcomes in canonical
+/// order. Holds them all in memory: large runs use [`stream_benchmark`].
 pub fn run_benchmark(
     cfg: &BenchConfig,
     policies: &[(String, PolicyFactory)],
     progress: &(dyn Fn() + Sync),
 ) -> Vec<EpisodeOutcome> {
-    let jobs = cfg.scenes();
-    let results: Vec<Vec<EpisodeOutcome>> = jobs
-        .par_iter()
-        .map(|&(row, k)| {
-            let out = run_scene(cfg, policies, row, k);
-            progress();
-            out
-        })
-        .collect();
-    results.into_iter().flatten().collect()
+    let mut all = Vec::new();
+    let never = AtomicBool::new(false);
+    let sink = |_: u64, scene: Vec<EpisodeOutcome>| -> std::result::Result<(), ()> {
+        all.extend(scene);
+        Ok(())
+    };
+    let _ = stream_benchmark(cfg, policies, 0, 64, &never, progress, sink);
+    all
+}
+
+/// Runs scenes `from..scene_count()` in canonical order, `chunk` scenes at a
+/// time in parallel, and hands each scene's outcomes (one per policy, in the
+/// policies' order) to `sink` in that order, with the scene's number. Memory
+/// holds one chunk, whatever the number of scenes. Once `stop` is set no new
+/// scene starts; the scenes already finished are still handed over, in
+/// order. Returns the number of the first scene not handed over.
+pub fn stream_benchmark<E>(
+    cfg: &BenchConfig,
+    policies: &[(String, PolicyFactory)],
+    from: u64,
+    chunk: usize,
+    stop: &AtomicBool,
+    progress: &(dyn Fn() + Sync),
+    mut sink: impl FnMut(u64, Vec<EpisodeOutcome>) -> std::result::Result<(), E>,
+) -> std::result::Result<u64, E> {
+    let total = cfg.scene_count();
+    let chunk = chunk.max(1) as u64;
+    let mut next = from;
+    while next < total {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(next);
+        }
+        let end = total.min(next.saturating_add(chunk));
+        let done: Vec<Option<Vec<EpisodeOutcome>>> = (next..end)
+            .into_par_iter()
+            .map(|i| {
+                if stop.load(Ordering::Relaxed) {
+                    return None;
+                }
+                let (row, k) = cfg.scene_at(i)?;
+                let out = run_scene(cfg, policies, row, k);
+                progress();
+                Some(out)
+            })
+            .collect();
+        for outcomes in done {
+            let Some(outcomes) = outcomes else {
+                return Ok(next);
+            };
+            sink(next, outcomes)?;
+            next += 1;
+        }
+    }
+    Ok(next)
 }
 
 fn run_scene(
@@ -424,6 +506,50 @@ pub fn wilson(successes: usize, n: usize) -> (f64, f64) {
     ((centre - half).max(0.0), (centre + half).min(1.0))
 }
 
+/// Running statistics of one table cell: the count, the sum (added in
+/// order, so the mean equals `values.sum() / n` exactly), Welford's sum of
+/// squared deviations and the successes (values above 0.5). Memory does not
+/// grow with the number of values.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Running {
+    pub n: usize,
+    pub sum: f64,
+    welford_mean: f64,
+    m2: f64,
+    pub successes: usize,
+}
+
+impl Running {
+    pub fn push(&mut self, v: f64) {
+        self.n += 1;
+        self.sum += v;
+        let delta = v - self.welford_mean;
+        self.welford_mean += delta / self.n as f64;
+        self.m2 += delta * (v - self.welford_mean);
+        if v > 0.5 {
+            self.successes += 1;
+        }
+    }
+
+    pub fn mean(&self) -> f64 {
+        if self.n == 0 {
+            f64::NAN
+        } else {
+            self.sum / self.n as f64
+        }
+    }
+
+    /// Mean and half-width of the 95% interval (normal approximation).
+    pub fn mean_ci(&self) -> (f64, f64) {
+        let mean = self.mean();
+        if self.n < 2 {
+            return (mean, if self.n == 1 { 0.0 } else { f64::NAN });
+        }
+        let var = (self.m2 / (self.n - 1) as f64).max(0.0);
+        (mean, 1.96 * (var / self.n as f64).sqrt())
+    }
+}
+
 /// Mean and half-width of the 95% interval (normal approximation).
 pub fn mean_ci(values: &[f64]) -> (f64, f64) {
     let n = values.len() as f64;
@@ -456,5 +582,23 @@ mod tests {
             "{lo} {hi}"
         );
         assert!(wilson(0, 0).0.is_nan());
+    }
+
+    #[test]
+    fn running_statistics_equal_the_two_pass_ones() {
+        let values = [0.25, 1.0, 0.0, 0.75, 0.5, 1.0, 0.125];
+        let mut r = Running::default();
+        for v in values {
+            r.push(v);
+        }
+        let (m, h) = mean_ci(&values);
+        let (rm, rh) = r.mean_ci();
+        assert_eq!(rm, m);
+        assert!((rh - h).abs() < 1e-12, "{rh} {h}");
+        assert_eq!((r.n, r.successes), (7, 3));
+        assert!(Running::default().mean_ci().0.is_nan());
+        let mut one = Running::default();
+        one.push(0.3);
+        assert_eq!(one.mean_ci(), (0.3, 0.0));
     }
 }

@@ -7,7 +7,9 @@
     reason = "tests and benchmarks fail by panicking"
 )]
 use std::sync::Arc;
-use umpnet_eval::bench::{BenchConfig, PolicyFactory, Row, Shard, object_rows, run_benchmark};
+use umpnet_eval::bench::{
+    BenchConfig, PolicyFactory, Row, Shard, object_rows, run_benchmark, stream_benchmark,
+};
 use umpnet_eval::policy::{Decision, Observation, Policy, StepRecord};
 use umpnet_eval::{EvalError, Result};
 use umpnet_sim::camera::Camera;
@@ -74,14 +76,60 @@ fn failed_episodes_are_reported_with_their_scene_and_the_run_goes_on() {
 }
 
 #[test]
+fn streamed_scenes_arrive_in_order_and_a_stop_keeps_a_whole_prefix() {
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+    let cfg = config(Task::Goal, vec![Category::Door, Category::Laptop], 5);
+    let oracle: PolicyFactory =
+        Arc::new(|| Ok(umpnet_eval::scripted_policy("oracle").expect("oracle exists")));
+    let policies = [("oracle".to_string(), oracle)];
+    let whole = run_benchmark(&cfg, &policies, &|| {});
+    let key = |o: &umpnet_eval::bench::EpisodeOutcome| (o.category, o.index);
+    let mut from_three = Vec::new();
+    let never = AtomicBool::new(false);
+    let end = stream_benchmark(&cfg, &policies, 3, 2, &never, &|| {}, |i, out| {
+        from_three.push((i, out));
+        Ok::<(), ()>(())
+    })
+    .unwrap();
+    assert_eq!(end, 10);
+    for (n, (i, out)) in from_three.iter().enumerate() {
+        assert_eq!(*i, 3 + n as u64);
+        assert_eq!(key(&out[0]), key(&whole[*i as usize]));
+        assert_eq!(
+            serde_json::to_string(&out[0]).unwrap(),
+            serde_json::to_string(&whole[*i as usize]).unwrap()
+        );
+    }
+    // Stopped after four scenes have started: what arrives is a prefix.
+    let stop = AtomicBool::new(false);
+    let started = AtomicUsize::new(0);
+    let mut got = Vec::new();
+    let end = stream_benchmark(
+        &cfg,
+        &policies,
+        0,
+        3,
+        &stop,
+        &|| {
+            if started.fetch_add(1, Ordering::SeqCst) >= 3 {
+                stop.store(true, Ordering::SeqCst);
+            }
+        },
+        |i, _| {
+            got.push(i);
+            Ok::<(), ()>(())
+        },
+    )
+    .unwrap();
+    assert!((4..10).contains(&end), "{end}");
+    assert_eq!(got, (0..end).collect::<Vec<_>>());
+}
+
+#[test]
 fn shards_partition_the_scenes_in_canonical_order() {
     let categories = vec![Category::Door, Category::Laptop, Category::Microwave];
     let mut cfg = config(Task::Exploration, categories, 5);
-    let all: Vec<(Row, u32)> = cfg
-        .scenes()
-        .into_iter()
-        .map(|(r, k)| (r.clone(), k))
-        .collect();
+    let all: Vec<(Row, u32)> = cfg.scenes().map(|(r, k)| (r.clone(), k)).collect();
     assert_eq!(all.len(), 15);
     assert_eq!(all[0], (Row::Category(Category::Door), 0));
     assert_eq!(all[5], (Row::Category(Category::Laptop), 0));
@@ -90,11 +138,7 @@ fn shards_partition_the_scenes_in_canonical_order() {
         let mut sizes = Vec::new();
         for index in 1..=count {
             cfg.shard = Shard::new(index, count).expect("valid shard");
-            let part: Vec<(Row, u32)> = cfg
-                .scenes()
-                .into_iter()
-                .map(|(r, k)| (r.clone(), k))
-                .collect();
+            let part: Vec<(Row, u32)> = cfg.scenes().map(|(r, k)| (r.clone(), k)).collect();
             sizes.push(part.len());
             seen.extend(part);
         }
@@ -107,6 +151,22 @@ fn shards_partition_the_scenes_in_canonical_order() {
         seen.sort_by_key(|s| all.iter().position(|a| a == s));
         assert_eq!(seen, all, "{count} shards");
     }
+    // Counted, not listed: a run of 22 x 4e9 scenes is known at once.
+    let mut huge = config(Task::Exploration, Category::ALL.to_vec(), u32::MAX);
+    huge.shard = Shard::new(3, 7).unwrap();
+    let total = Category::ALL.len() as u64 * u64::from(u32::MAX);
+    assert_eq!(huge.scene_count(), (total - 2).div_ceil(7));
+    let last = huge.scene_count() - 1;
+    let position = 2 + last * 7;
+    let (row, k) = huge.scene_at(last).unwrap();
+    assert_eq!(
+        (row.clone(), u64::from(k)),
+        (
+            Row::Category(Category::ALL[(position / u64::from(u32::MAX)) as usize]),
+            position % u64::from(u32::MAX)
+        )
+    );
+    assert!(huge.scene_at(last + 1).is_none());
     assert_eq!(
         "2/4".parse::<Shard>().ok(),
         Some(Shard { index: 2, count: 4 })

@@ -1,8 +1,10 @@
 //! `umpnet eval merge`: the shards of one evaluation back into its report.
 //! Scenes are pure functions of (seed, task, category, index), so the merged
 //! report is the unsharded one, byte for byte except `wall_seconds` (here the
-//! sum of the shards' wall times).
-use super::report::{Report, RunInfo, Scored};
+//! sum of the shards' wall times). The shards' episodes files are read in
+//! step, one line at a time: memory does not grow with their size.
+use super::report::{Aggregate, Report, RunInfo};
+use super::stream::{self, EpisodeWriter, LineReader, differing_fields};
 use crate::{Ctx, usage};
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
@@ -26,7 +28,10 @@ pub struct MergeArgs {
 #[derive(serde::Deserialize)]
 struct ShardFile {
     summary: ShardSummary,
-    episodes: Vec<serde_json::Value>,
+    #[serde(default)]
+    episodes_file: Option<String>,
+    #[serde(default)]
+    episodes_sha256: Option<String>,
 }
 
 #[derive(serde::Deserialize)]
@@ -46,30 +51,58 @@ fn results_path(p: &Path) -> PathBuf {
     }
 }
 
-/// The fields of two runs' information that differ, by name.
-fn differing_fields(a: &RunInfo, b: &RunInfo) -> Vec<String> {
-    let (Ok(serde_json::Value::Object(a)), Ok(serde_json::Value::Object(b))) =
-        (serde_json::to_value(a), serde_json::to_value(b))
-    else {
-        return vec!["(unreadable)".into()];
+/// One shard being merged: its episodes file, read in step with the others.
+struct Open {
+    shard: Shard,
+    path: PathBuf,
+    lines: LineReader,
+    sha256: String,
+}
+
+/// The episodes file a shard's results.json names: a plain file beside it.
+fn episodes_of(path: &Path, file: &ShardFile) -> Result<(PathBuf, String)> {
+    let (Some(name), Some(sha)) = (&file.episodes_file, &file.episodes_sha256) else {
+        return Err(usage(format!(
+            "{}: names no episodes file (a results.json from before episodes were \
+             streamed, or not a shard's); run the shard again",
+            path.display()
+        )));
     };
-    a.iter()
-        .filter(|(k, v)| b.get(*k) != Some(v))
-        .map(|(k, v)| {
-            let other = b.get(k).map(|x| x.to_string()).unwrap_or_default();
-            format!("{k} ({v} against {other})")
-        })
-        .collect()
+    let plain = Path::new(name)
+        .file_name()
+        .is_some_and(|f| f == std::ffi::OsStr::new(name));
+    if !plain {
+        return Err(usage(format!(
+            "{}: episodes_file `{name}`: expected a file name beside it",
+            path.display()
+        )));
+    }
+    let dir = path.parent().unwrap_or(Path::new("."));
+    Ok((dir.join(name), sha.clone()))
 }
 
 pub fn run(ctx: &Ctx, a: &MergeArgs) -> Result<()> {
     let mut first: Option<(PathBuf, RunInfo)> = None;
-    let mut by_index: BTreeMap<u32, PathBuf> = BTreeMap::new();
+    let mut by_index: BTreeMap<u32, Open> = BTreeMap::new();
     let mut count: Option<u32> = None;
     let mut wall = 0.0;
-    let mut episodes = Vec::new();
+    if a.shards.len() as u64 + 64 > crate::signals::raise_open_files() {
+        return Err(usage(format!(
+            "{} shards: more than the open files this system allows (ulimit -n); \
+             merge them in groups of shards of a coarser split",
+            a.shards.len()
+        )));
+    }
     for arg in &a.shards {
         let path = results_path(arg);
+        let meta =
+            std::fs::metadata(&path).with_context(|| format!("reading {}", path.display()))?;
+        if !meta.is_file() || meta.len() > 64 << 20 {
+            return Err(usage(format!(
+                "{}: not the results.json of an `umpnet eval --shard` run",
+                path.display()
+            )));
+        }
         let text = std::fs::read_to_string(&path)
             .with_context(|| format!("reading {}", path.display()))?;
         let file: ShardFile = serde_json::from_str(&text).with_context(|| {
@@ -110,15 +143,24 @@ pub fn run(ctx: &Ctx, a: &MergeArgs) -> Result<()> {
             )));
         }
         count = Some(shard.count);
-        if let Some(other) = by_index.insert(shard.index, path.clone()) {
+        if let Some(other) = by_index.get(&shard.index) {
             return Err(usage(format!(
                 "shard {shard} given twice: {} and {}",
-                other.display(),
+                other.path.display(),
                 path.display()
             )));
         }
+        let (episodes, sha256) = episodes_of(&path, &file)?;
         wall += file.summary.wall_seconds;
-        episodes.extend(file.episodes);
+        by_index.insert(
+            shard.index,
+            Open {
+                shard,
+                path: path.clone(),
+                lines: LineReader::open(&episodes)?,
+                sha256,
+            },
+        );
     }
     let (Some((_, run)), Some(count)) = (first, count) else {
         return Err(usage("no shards given"));
@@ -130,67 +172,87 @@ pub fn run(ctx: &Ctx, a: &MergeArgs) -> Result<()> {
     if !missing.is_empty() {
         return Err(usage(format!("missing shards: {}", missing.join(", "))));
     }
-    let mut report = Report {
-        run,
-        shard: Shard::ALL,
-        wall_seconds: wall,
-        episodes,
-    };
-    sort_canonically(&mut report)?;
-    let scenes = report.run.rows().len() * report.run.episodes_per_category as usize;
     let _claim = a
         .out
         .as_deref()
         .map(|dir| crate::outdir::claim(dir, a.force, Report::FILES))
         .transpose()?;
-    super::finish(ctx, &report, a.out.as_deref(), scenes)
-}
-
-/// Puts the episodes in the order a single run reports them (category as
-/// listed, scene index, policy as listed) and checks that each is there once.
-fn sort_canonically(report: &mut Report) -> Result<()> {
-    let scored: Vec<Scored> = report.scored()?;
-    let run = &report.run;
+    let mut writer = a
+        .out
+        .as_deref()
+        .map(|dir| EpisodeWriter::create(&dir.join(stream::EPISODES)))
+        .transpose()?;
+    let mut shards: Vec<Open> = by_index.into_values().collect();
     let rows = run.rows();
-    let mut keyed = Vec::with_capacity(scored.len());
-    for (o, value) in scored.iter().zip(std::mem::take(&mut report.episodes)) {
-        let row = o.row();
-        let name = row.as_ref().map_or("?", |r| r.name()).to_owned();
-        let c = row.and_then(|row| rows.iter().position(|r| *r == row));
-        let p = run.policies.iter().position(|p| *p == o.policy);
-        let (Some(c), Some(p)) = (c, p) else {
-            return Err(usage(format!(
-                "episode {name} #{} of policy `{}` is outside the evaluation's rows or policies",
-                o.index, o.policy
-            )));
+    let per_scene = run.policies.len() as u64;
+    let scenes = Shard::ALL.scene_count(rows.len() as u64, run.episodes_per_category);
+    let mut agg = Aggregate::new(run.task);
+    let pb = ctx.progress(scenes, "scenes");
+    // Scene g of the whole run is scene g / N of shard g mod N (round robin):
+    // reading the shards in turn yields the canonical order.
+    for g in 0..scenes {
+        let Some(open) = shards.get_mut((g % u64::from(count)) as usize) else {
+            break;
         };
-        if o.index >= run.episodes_per_category {
+        for p in 0..per_scene {
+            let line = g * per_scene + p;
+            let own = open.lines.lines;
+            let file = open.lines.path().to_path_buf();
+            let Some(text) = open.lines.next_line()? else {
+                return Err(usage(format!(
+                    "shard {} ({}): {} ends after {own} episodes; the shard has {}",
+                    open.shard,
+                    open.path.display(),
+                    open.lines.path().display(),
+                    open.shard
+                        .scene_count(rows.len() as u64, run.episodes_per_category)
+                        * per_scene
+                )));
+            };
+            let s = run.check_line(&rows, Shard::ALL, line, text).map_err(|e| {
+                usage(format!(
+                    "shard {} ({}) line {}: {e:#}",
+                    open.shard,
+                    file.display(),
+                    own + 1
+                ))
+            })?;
+            agg.add(&s);
+            if let Some(w) = writer.as_mut() {
+                w.push(text)?;
+            }
+        }
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    for open in &mut shards {
+        if open.lines.next_line()?.is_some() || open.lines.cut > 0 {
             return Err(usage(format!(
-                "episode {name} #{} is beyond episodes_per_category {}",
-                o.index, run.episodes_per_category
+                "shard {} ({}): {} holds more episodes than the shard has",
+                open.shard,
+                open.path.display(),
+                open.lines.path().display()
             )));
         }
-        keyed.push(((c, o.index, p), value));
+        if open.lines.sha256() != open.sha256 {
+            return Err(usage(format!(
+                "shard {} ({}): {} is not the file its results.json was written with \
+                 (its SHA-256 differs)",
+                open.shard,
+                open.path.display(),
+                open.lines.path().display()
+            )));
+        }
     }
-    keyed.sort_by_key(|(k, _)| *k);
-    let twice = keyed.windows(2).find_map(|w| match w {
-        [a, b] if a.0 == b.0 => Some(a.0),
-        _ => None,
-    });
-    if let Some((c, k, p)) = twice {
-        return Err(usage(format!(
-            "episode {} #{k} of policy `{}` appears in more than one shard",
-            rows.get(c).map_or("?", |c| c.name()),
-            run.policies.get(p).map_or("?", String::as_str)
-        )));
+    if let Some(w) = writer.as_mut() {
+        w.commit()?;
     }
-    let expected = rows.len() * run.episodes_per_category as usize * run.policies.len();
-    if keyed.len() != expected {
-        return Err(usage(format!(
-            "the shards hold {} episodes; the evaluation has {expected}",
-            keyed.len()
-        )));
-    }
-    report.episodes = keyed.into_iter().map(|(_, v)| v).collect();
-    Ok(())
+    let report = Report {
+        run,
+        shard: Shard::ALL,
+        wall_seconds: wall,
+        agg,
+        episodes_file: writer.as_ref().map(EpisodeWriter::digest),
+    };
+    super::finish(ctx, &report, a.out.as_deref(), scenes)
 }

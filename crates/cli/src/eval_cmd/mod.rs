@@ -3,16 +3,18 @@
 mod merge;
 mod plot;
 mod report;
+mod stream;
 mod tables;
 
 use crate::{Ctx, usage};
 use anyhow::{Context, Result};
-use report::{ObjectInfo, Report, RunInfo};
+use report::{Aggregate, ObjectInfo, Report, RunInfo, Scored};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use stream::{EpisodeWriter, RunState};
 use umpnet_eval::Protocol;
-use umpnet_eval::bench::{BenchConfig, PolicyFactory, Row, Shard, object_rows, run_benchmark};
+use umpnet_eval::bench::{BenchConfig, PolicyFactory, Row, Shard, object_rows, stream_benchmark};
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
 use umpnet_sim::physics::PhysicsProfile;
@@ -80,12 +82,18 @@ pub struct EvalArgs {
     /// at the K-th. `umpnet eval merge` joins the shards' --out directories.
     #[arg(long, value_parser = parse_shard)]
     pub shard: Option<Shard>,
-    /// Write results.csv, results.json, table.txt and curve.png here (a shard: results.json).
+    /// Write episodes.jsonl as episodes finish, then results.json, results.csv,
+    /// table.txt and curve.png, here (a shard: episodes.jsonl and results.json).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Replace the results a previous run left in --out.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "resume")]
     pub force: bool,
+    /// Continue the interrupted run in --out (the same command, plus
+    /// --resume): its whole scenes are kept, the rest are run, and the report
+    /// is the one an uninterrupted run writes.
+    #[arg(long, requires = "out")]
+    pub resume: bool,
     /// Write Rerun recordings of chosen episodes here, one .rrd per episode
     /// (`{category}_{index}_{policy}.rrd`), replayed after the run and
     /// checked to be the episodes evaluated. Needs the `rerun` feature.
@@ -274,66 +282,159 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         protocol: a.protocol,
         shard,
     };
+    let run = RunInfo {
+        umpnet_version: env!("CARGO_PKG_VERSION").into(),
+        task: a.task,
+        seed: a.seed,
+        episodes_per_category: a.episodes_per_category,
+        physics: a.physics,
+        protocol: a.protocol,
+        resolution: [resolution.0, resolution.1],
+        resolutions,
+        renderer: match renderer {
+            RendererKind::Wgpu => "wgpu",
+            _ => "cpu",
+        }
+        .into(),
+        policies: names,
+        models,
+        categories,
+        objects,
+    };
+    if let Some(dir) = &a.out
+        && !a.force
+        && !a.resume
+        && dir.join(stream::RUN).exists()
+        && !dir.join("results.json").exists()
+    {
+        return Err(usage(format!(
+            "{} holds an interrupted evaluation ({}); the same command with --resume \
+             continues it, --force starts over",
+            dir.display(),
+            stream::RUN
+        )));
+    }
     // Claimed before the long run, so a conflict is known at once.
     let _claim = a
         .out
         .as_deref()
-        .map(|dir| crate::outdir::claim(dir, a.force, Report::FILES))
+        .map(|dir| crate::outdir::claim(dir, a.force || a.resume, Report::FILES))
         .transpose()?;
     if let Some(dir) = &a.rrd {
         crate::rrd::check(dir)?;
     }
-    let scenes = cfg.scenes().len();
+    let mut agg = Aggregate::new(a.task);
+    // The evaluated episodes that --rrd records again, to check the replays.
+    let mut evaluated: Vec<(Scored, String)> = Vec::new();
+    let recorded = |s: &Scored| a.rrd.is_some() && s.index < a.rrd_per_category;
+    let mut wall_before = 0.0;
+    let mut start = 0;
+    let mut writer = match &a.out {
+        Some(dir) if a.resume => {
+            let r = stream::resume(dir, &run, shard, &mut agg, |s, text| {
+                if recorded(s)
+                    && let Ok(again) = Scored::parse(text)
+                {
+                    evaluated.push((again, text.to_owned()));
+                }
+            })?;
+            wall_before = r.wall_seconds;
+            start = r.scenes;
+            Some(r.writer)
+        }
+        Some(dir) => {
+            // A forced run replaces the whole previous report at once: the
+            // folder never mixes an old summary with new episodes.
+            for f in Report::FILES {
+                let p = dir.join(f);
+                if p.exists() {
+                    std::fs::remove_file(&p)
+                        .with_context(|| format!("{}: cannot replace", p.display()))?;
+                }
+            }
+            Some(EpisodeWriter::create(&dir.join(stream::EPISODES))?)
+        }
+        None => None,
+    };
+    let save_state = |wall: f64| -> Result<()> {
+        match &a.out {
+            Some(dir) => RunState {
+                run: run.clone(),
+                shard: shard.to_string(),
+                wall_seconds: wall,
+            }
+            .write(dir),
+            None => Ok(()),
+        }
+    };
+    save_state(wall_before)?;
+    let scenes = cfg.scene_count();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.map_or(0, usize::from))
         .build()?;
-    let pb = ctx.progress(scenes as u64, "scenes");
+    let pb = ctx.progress(scenes, "scenes");
+    pb.set_position(start);
+    pb.reset_eta();
+    let stop = crate::signals::stop_flag();
     let t0 = std::time::Instant::now();
-    let outcomes = pool.install(|| run_benchmark(&cfg, &policies, &|| pb.inc(1)));
+    // Enough scenes per chunk to keep every thread busy; a chunk's episodes
+    // are written (and committed) in canonical order before the next starts.
+    let chunk = pool.current_num_threads().max(1) * 8;
+    let sink = |i: u64, outcomes: Vec<umpnet_eval::bench::EpisodeOutcome>| -> Result<()> {
+        for o in &outcomes {
+            let text = serde_json::to_string(o)?;
+            let s = Scored::parse(&text).context("an episode outcome that does not read back")?;
+            agg.add(&s);
+            if let Some(w) = writer.as_mut() {
+                w.push(&text)?;
+            }
+            if recorded(&s) {
+                evaluated.push((s, text));
+            }
+        }
+        // Whole chunks only: commit once the chunk's last scene is in.
+        if (i + 1 - start).is_multiple_of(chunk as u64) || i + 1 == scenes {
+            if let Some(w) = writer.as_mut() {
+                w.commit()?;
+            }
+            save_state(wall_before + t0.elapsed().as_secs_f64())?;
+        }
+        Ok(())
+    };
+    let done = pool
+        .install(|| stream_benchmark(&cfg, &policies, start, chunk, stop, &|| pb.inc(1), sink))?;
     pb.finish_and_clear();
-    let wall = t0.elapsed().as_secs_f64();
-    for f in outcomes.iter().filter(|o| o.error.is_some()).take(5) {
-        eprintln!(
-            "episode failed: {} #{} {}: {}",
-            f.category
-                .map(|c| c.name().to_owned())
-                .or_else(|| f.object.clone())
-                .unwrap_or_default(),
-            f.index,
-            f.policy,
-            f.error.as_deref().unwrap_or("")
-        );
+    let wall = wall_before + t0.elapsed().as_secs_f64();
+    if let Some(w) = writer.as_mut() {
+        w.commit()?;
+    }
+    save_state(wall)?;
+    if done < scenes {
+        let how = match &a.out {
+            Some(dir) => format!(
+                "{} holds them; the same command with --resume continues",
+                dir.display()
+            ),
+            None => "nothing was written (no --out)".into(),
+        };
+        return Err(crate::signals::Interrupted(format!(
+            "interrupted after {done} of {scenes} scenes; {how}"
+        ))
+        .into());
+    }
+    for f in &agg.failures {
+        eprintln!("episode failed: {f}");
     }
     let report = Report {
-        run: RunInfo {
-            umpnet_version: env!("CARGO_PKG_VERSION").into(),
-            task: a.task,
-            seed: a.seed,
-            episodes_per_category: a.episodes_per_category,
-            physics: a.physics,
-            protocol: a.protocol,
-            resolution: [resolution.0, resolution.1],
-            resolutions,
-            renderer: match renderer {
-                RendererKind::Wgpu => "wgpu",
-                _ => "cpu",
-            }
-            .into(),
-            policies: names,
-            models,
-            categories,
-            objects,
-        },
+        run,
         shard,
         wall_seconds: wall,
-        episodes: outcomes
-            .iter()
-            .map(serde_json::to_value)
-            .collect::<std::result::Result<_, _>>()?,
+        agg,
+        episodes_file: writer.as_ref().map(EpisodeWriter::digest),
     };
     finish(ctx, &report, a.out.as_deref(), scenes)?;
     if let Some(dir) = &a.rrd {
-        let n = record(&cfg, &policies, &outcomes, dir, a.rrd_per_category)?;
+        let n = record(&cfg, &policies, &evaluated, dir, a.rrd_per_category)?;
         if !ctx.json {
             println!("recorded {n} episodes to {}", dir.display());
         }
@@ -346,12 +447,19 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
 fn record(
     cfg: &BenchConfig,
     policies: &[(String, PolicyFactory)],
-    outcomes: &[umpnet_eval::bench::EpisodeOutcome],
+    evaluated: &[(Scored, String)],
     dir: &Path,
     per_category: u32,
 ) -> Result<usize> {
     let mut n = 0;
-    for (row, k) in cfg.scenes().into_iter().filter(|(_, k)| *k < per_category) {
+    let per_row = per_category.min(cfg.episodes_per_category);
+    let mine = cfg.rows.iter().enumerate().flat_map(|(r, row)| {
+        (0..per_row).filter_map(move |k| {
+            let position = r as u64 * u64::from(cfg.episodes_per_category) + u64::from(k);
+            cfg.shard.holds(position).then_some((row, k))
+        })
+    });
+    for (row, k) in mine {
         for (name, make) in policies {
             let path = dir.join(format!("{row}_{k}_{name}.rrd"));
             let mut recorder = crate::rrd::Recorder::create(&path, &format!("{name}: {row} #{k}"))?;
@@ -368,17 +476,18 @@ fn record(
                 return Err(e);
             }
             recorder.finish()?;
-            let evaluated = outcomes
+            let evaluated = evaluated
                 .iter()
-                .find(|o| {
+                .find(|(o, _)| {
                     o.category == row.category()
                         && o.object.as_deref() == matches!(row, Row::Object(_)).then(|| row.name())
                         && o.index == k
                         && &o.policy == name
                 })
-                .and_then(|o| o.episode.as_ref());
+                .map(|(_, text)| serde_json::from_str::<serde_json::Value>(text))
+                .transpose()?;
             if let (Ok(ep), Some(evaluated)) = (&replayed, evaluated)
-                && serde_json::to_value(ep)? != serde_json::to_value(evaluated)?
+                && Some(&serde_json::to_value(ep)?) != evaluated.get("episode")
             {
                 anyhow::bail!(
                     "{}: the replayed episode differs from the evaluated one (a determinism bug)",
@@ -392,14 +501,13 @@ fn record(
 }
 
 /// Prints the report (a table, or the summary with --json) and writes its files.
-fn finish(ctx: &Ctx, report: &Report, out: Option<&Path>, scenes: usize) -> Result<()> {
-    let scored = report.scored()?;
+fn finish(ctx: &Ctx, report: &Report, out: Option<&Path>, scenes: u64) -> Result<()> {
     let written = match out {
-        Some(dir) => report.write(&scored, dir)?,
+        Some(dir) => report.write(dir)?,
         None => Vec::new(),
     };
     if ctx.json {
-        println!("{}", report.summary(&scored)?);
+        println!("{}", report.summary()?);
         return Ok(());
     }
     if !report.shard.is_all() {
@@ -408,7 +516,7 @@ fn finish(ctx: &Ctx, report: &Report, out: Option<&Path>, scenes: usize) -> Resu
             report.shard
         );
     }
-    print!("{}", report.table(&scored));
+    print!("{}", report.table());
     // Which images each policy saw (learned packages see their input resolution).
     let mut groups: BTreeMap<[u32; 2], Vec<&str>> = BTreeMap::new();
     for (name, res) in &report.run.resolutions {
@@ -424,14 +532,18 @@ fn finish(ctx: &Ctx, report: &Report, out: Option<&Path>, scenes: usize) -> Resu
     }
     println!(
         "{} episodes ({} scenes x {} policies) in {:.1} s; {} failed",
-        scored.len(),
+        report.agg.episodes,
         scenes,
         report.run.policies.len(),
         report.wall_seconds,
-        scored.iter().filter(|o| o.error.is_some()).count()
+        report.agg.failed
     );
     if let Some(dir) = out {
-        println!("wrote {} to {}", written.join(", "), dir.display());
+        let mut files = written;
+        if report.episodes_file.is_some() {
+            files.insert(0, stream::EPISODES);
+        }
+        println!("wrote {} to {}", files.join(", "), dir.display());
     }
     Ok(())
 }

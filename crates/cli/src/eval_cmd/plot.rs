@@ -1,5 +1,4 @@
 //! curve.png: the mean curve of each policy over its episodes.
-use super::report::Scored;
 use anyhow::Result;
 use std::path::Path;
 use umpnet_sim::scene::Task;
@@ -20,43 +19,12 @@ fn register_font() -> Result<()> {
     .map_err(|e| anyhow::anyhow!(e))
 }
 
-/// Mean curve per policy: unique states (exploration) or normalized distance (goal) vs step.
-pub fn plot_curves(
-    task: Task,
-    policies: &[String],
-    outcomes: &[Scored],
-    path: &Path,
-) -> Result<()> {
+/// Mean curve per policy (`curves`, in the policies' order): unique states
+/// (exploration) or normalized distance (goal) vs step.
+pub fn plot_curves(task: Task, curves: &[(String, Vec<f64>)], path: &Path) -> Result<()> {
     use plotters::prelude::*;
     register_font()?;
-    let mut curves: Vec<(String, Vec<f64>)> = Vec::new();
-    let mut max_len = 0;
-    for p in policies {
-        let series: Vec<&Vec<f32>> = outcomes
-            .iter()
-            .filter(|o| &o.policy == p)
-            .filter_map(|o| o.episode.as_ref())
-            .map(|e| {
-                if task == Task::Goal {
-                    &e.metrics.normalized_distance_curve
-                } else {
-                    &e.metrics.unique_states
-                }
-            })
-            .collect();
-        let len = series.iter().map(|s| s.len()).max().unwrap_or(0);
-        max_len = max_len.max(len);
-        let mean: Vec<f64> = (0..len)
-            .map(|t| {
-                let v: Vec<f64> = series
-                    .iter()
-                    .map(|s| *s.get(t).or(s.last()).unwrap_or(&0.0) as f64)
-                    .collect();
-                v.iter().sum::<f64>() / v.len().max(1) as f64
-            })
-            .collect();
-        curves.push((p.clone(), mean));
-    }
+    let max_len = curves.iter().map(|(_, c)| c.len()).max().unwrap_or(0);
     let ymax = curves
         .iter()
         .flat_map(|(_, c)| c.iter().copied())

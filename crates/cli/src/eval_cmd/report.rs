@@ -1,9 +1,11 @@
-//! What an evaluation reports, from its episodes as JSON: the summary, the
-//! tables, results.csv/json, table.txt and curve.png. A single run and a
-//! merge of shards go through this same code from the same JSON, which is
-//! what makes a merged report byte-identical to an unsharded one.
+//! What an evaluation reports: running aggregates of its episodes (read
+//! back as JSON lines, in canonical order), then the summary, the tables,
+//! results.csv/json, table.txt and curve.png. A single run, a resumed run and
+//! a merge of shards feed this same code the same lines in the same order,
+//! which is what makes their reports byte-identical. Memory holds one
+//! running statistic per cell and one sum per curve step, whatever the
+//! number of episodes.
 use anyhow::{Context, Result, bail};
-use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
 use umpnet_eval::Protocol;
@@ -60,13 +62,15 @@ impl RunInfo {
     }
 }
 
-/// One evaluation's (or one shard's) episodes, in canonical order.
+/// One evaluation's (or one shard's) report: what ran, and its episodes'
+/// aggregates.
 pub struct Report {
     pub run: RunInfo,
     pub shard: Shard,
     pub wall_seconds: f64,
-    /// Each an `EpisodeOutcome` as JSON.
-    pub episodes: Vec<serde_json::Value>,
+    pub agg: Aggregate,
+    /// The episodes file beside results.json, when the run wrote one.
+    pub episodes_file: Option<super::stream::EpisodesDigest>,
 }
 
 /// The part of an episode outcome that the tables read.
@@ -90,6 +94,15 @@ pub struct ScoredEpisode {
 use super::tables::{self, Cells, RowKey, metrics_of};
 
 impl Scored {
+    /// One line of an episodes file.
+    pub fn parse(line: &str) -> Result<Scored> {
+        let s: Scored = serde_json::from_str(line).context("not an episode outcome")?;
+        if s.row().is_none() {
+            bail!("expected one of `category` or `object`");
+        }
+        Ok(s)
+    }
+
     pub fn row(&self) -> Option<RowKey> {
         match (&self.category, &self.object) {
             (Some(c), None) => Some(RowKey::Category(*c)),
@@ -109,55 +122,129 @@ fn value(m: &Metrics, metric: &str) -> Option<f64> {
     })
 }
 
-impl Report {
-    pub fn scored(&self) -> Result<Vec<Scored>> {
-        self.episodes
+/// The mean curve of one policy, kept as sums: `at[t]` adds the episodes
+/// that reached step t, `ended[l]` the last values of those that ended after
+/// l steps (a shorter episode holds its last value, as a plot of it would).
+#[derive(Default)]
+struct CurveSum {
+    n: usize,
+    at: Vec<f64>,
+    ended: Vec<f64>,
+}
+
+impl CurveSum {
+    fn push(&mut self, series: &[f32]) {
+        self.n += 1;
+        if self.at.len() < series.len() {
+            self.at.resize(series.len(), 0.0);
+        }
+        for (sum, v) in self.at.iter_mut().zip(series) {
+            *sum += f64::from(*v);
+        }
+        if let Some(last) = series.last() {
+            if self.ended.len() <= series.len() {
+                self.ended.resize(series.len() + 1, 0.0);
+            }
+            if let Some(e) = self.ended.get_mut(series.len()) {
+                *e += f64::from(*last);
+            }
+        }
+    }
+
+    fn mean(&self) -> Vec<f64> {
+        let mut held = 0.0;
+        self.at
             .iter()
             .enumerate()
-            .map(|(i, e)| {
-                let s = Scored::deserialize(e)
-                    .with_context(|| format!("episode {i}: not an episode outcome"))?;
-                if s.row().is_none() {
-                    bail!("episode {i}: expected one of `category` or `object`");
-                }
-                Ok(s)
+            .map(|(t, sum)| {
+                held += self.ended.get(t).copied().unwrap_or(0.0);
+                (sum + held) / self.n.max(1) as f64
             })
             .collect()
     }
+}
 
-    fn cells(&self, scored: &[Scored]) -> Cells {
-        let mut cells = Cells::new();
-        for o in scored {
-            let (Some(ep), Some(row)) = (&o.episode, o.row()) else {
-                continue;
-            };
-            for (m, _) in metrics_of(self.run.task) {
-                if let Some(v) = value(&ep.metrics, m) {
-                    cells
-                        .entry((o.policy.clone(), row.clone(), m))
-                        .or_default()
-                        .push(v);
-                }
-            }
+/// Running aggregates of an evaluation's episodes.
+pub struct Aggregate {
+    task: Task,
+    cells: Cells,
+    curves: BTreeMap<String, CurveSum>,
+    pub episodes: u64,
+    pub failed: u64,
+    /// The first few failures, for the screen: `row #k policy: error`.
+    pub failures: Vec<String>,
+}
+
+impl Aggregate {
+    pub fn new(task: Task) -> Aggregate {
+        Aggregate {
+            task,
+            cells: Cells::new(),
+            curves: BTreeMap::new(),
+            episodes: 0,
+            failed: 0,
+            failures: Vec::new(),
         }
-        cells
     }
 
+    pub fn add(&mut self, o: &Scored) {
+        self.episodes += 1;
+        if let Some(e) = &o.error {
+            self.failed += 1;
+            if self.failures.len() < 5 {
+                let row = o.row().map(|r| r.name().to_owned()).unwrap_or_default();
+                self.failures
+                    .push(format!("{row} #{} {}: {e}", o.index, o.policy));
+            }
+        }
+        let (Some(ep), Some(row)) = (&o.episode, o.row()) else {
+            return;
+        };
+        for (m, _) in metrics_of(self.task) {
+            if let Some(v) = value(&ep.metrics, m) {
+                self.cells
+                    .entry((o.policy.clone(), row.clone(), m))
+                    .or_default()
+                    .push(v);
+            }
+        }
+        let series = if self.task == Task::Goal {
+            &ep.metrics.normalized_distance_curve
+        } else {
+            &ep.metrics.unique_states
+        };
+        self.curves
+            .entry(o.policy.clone())
+            .or_default()
+            .push(series);
+    }
+
+    /// Each listed policy's mean curve (empty for a policy without episodes).
+    pub fn mean_curves(&self, policies: &[String]) -> Vec<(String, Vec<f64>)> {
+        policies
+            .iter()
+            .map(|p| {
+                let mean = self.curves.get(p).map(CurveSum::mean).unwrap_or_default();
+                (p.clone(), mean)
+            })
+            .collect()
+    }
+}
+
+impl Report {
     /// The summary printed with --json and stored in results.json.
-    pub fn summary(&self, scored: &[Scored]) -> Result<serde_json::Value> {
-        let cells = self.cells(scored);
+    pub fn summary(&self) -> Result<serde_json::Value> {
         let mut summary = serde_json::to_value(&self.run)?;
         let Some(map) = summary.as_object_mut() else {
             bail!("run information is not an object");
         };
         map.insert("wall_seconds".into(), self.wall_seconds.into());
-        map.insert(
-            "failed_episodes".into(),
-            scored.iter().filter(|o| o.error.is_some()).count().into(),
-        );
+        map.insert("episodes".into(), self.agg.episodes.into());
+        map.insert("failed_episodes".into(), self.agg.failed.into());
         map.insert(
             "cells".into(),
-            cells
+            self.agg
+                .cells
                 .iter()
                 .map(|((p, c, m), v)| {
                     let st = tables::stat(m, v);
@@ -173,17 +260,20 @@ impl Report {
         Ok(summary)
     }
 
-    pub fn table(&self, scored: &[Scored]) -> String {
+    pub fn table(&self) -> String {
         tables::screen(
             self.run.task,
             &self.run.policies,
             &self.run.rows(),
-            &self.cells(scored),
+            &self.agg.cells,
         )
     }
 
-    /// Every file [`Report::write`] may write: what `--out` must not already hold.
+    /// Every file [`Report::write`] and the run itself may write: what `--out`
+    /// must not already hold.
     pub const FILES: &'static [&'static str] = &[
+        super::stream::RUN,
+        super::stream::EPISODES,
         "results.json",
         "results.csv",
         "results.md",
@@ -192,13 +282,18 @@ impl Report {
         "curve.png",
     ];
 
-    /// results.json always; a whole evaluation also gets results.csv,
-    /// results.md, results.tex, table.txt and curve.png (a shard's share of the tables would mislead).
-    /// Each file is written beside and renamed, so a crash never leaves a
-    /// half-written one in place of a good one.
-    pub fn write(&self, scored: &[Scored], out: &Path) -> Result<Vec<&'static str>> {
+    /// results.json always (the summary, and the episodes file it stands
+    /// for); a whole evaluation also gets results.csv, results.md,
+    /// results.tex, table.txt and curve.png (a shard's share of the tables
+    /// would mislead). Each file is written beside and renamed, so a crash
+    /// never leaves a half-written one in place of a good one.
+    pub fn write(&self, out: &Path) -> Result<Vec<&'static str>> {
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-        let full = serde_json::json!({"summary": self.summary(scored)?, "episodes": self.episodes});
+        let mut full = serde_json::json!({"summary": self.summary()?});
+        if let (Some(f), Some(map)) = (&self.episodes_file, full.as_object_mut()) {
+            map.insert("episodes_file".into(), f.name.clone().into());
+            map.insert("episodes_sha256".into(), f.sha256.clone().into());
+        }
         write_atomic(
             &out.join("results.json"),
             serde_json::to_string(&full)?.as_bytes(),
@@ -206,25 +301,25 @@ impl Report {
         if !self.shard.is_all() {
             return Ok(vec!["results.json"]);
         }
-        let cells = self.cells(scored);
+        let cells = &self.agg.cells;
         let rows = self.run.rows();
         let (task, policies, categories) = (self.run.task, &self.run.policies, &rows);
         let files: [(&'static str, String); 4] = [
             (
                 "results.csv",
-                tables::csv(task, policies, categories, &cells),
+                tables::csv(task, policies, categories, cells),
             ),
             (
                 "results.md",
-                tables::markdown(task, policies, categories, &cells),
+                tables::markdown(task, policies, categories, cells),
             ),
             (
                 "results.tex",
-                tables::latex(task, policies, categories, &cells),
+                tables::latex(task, policies, categories, cells),
             ),
             (
                 "table.txt",
-                tables::screen(task, policies, categories, &cells),
+                tables::screen(task, policies, categories, cells),
             ),
         ];
         let mut written = vec!["results.json"];
@@ -232,12 +327,8 @@ impl Report {
             write_atomic(&out.join(name), text.as_bytes())?;
             written.push(name);
         }
-        match crate::eval_cmd::plot::plot_curves(
-            self.run.task,
-            &self.run.policies,
-            scored,
-            &out.join("curve.png"),
-        ) {
+        let curves = self.agg.mean_curves(&self.run.policies);
+        match crate::eval_cmd::plot::plot_curves(self.run.task, &curves, &out.join("curve.png")) {
             Ok(()) => written.push("curve.png"),
             Err(e) => eprintln!("warning: no plot: {e:#}"),
         }
@@ -245,6 +336,6 @@ impl Report {
     }
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(umpnet_sim::fsio::write_atomic(path, bytes)?)
 }

@@ -3,7 +3,7 @@
 //! continuous metrics the normal approximation.
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use umpnet_eval::bench::{mean_ci, wilson};
+use umpnet_eval::bench::{Running, wilson};
 use umpnet_sim::objects::Category;
 use umpnet_sim::scene::Task;
 
@@ -33,8 +33,8 @@ impl RowKey {
     }
 }
 
-/// (policy, row, metric) -> one value per episode.
-pub type Cells = BTreeMap<(String, RowKey, &'static str), Vec<f64>>;
+/// (policy, row, metric) -> the running statistics of its episodes' values.
+pub type Cells = BTreeMap<(String, RowKey, &'static str), Running>;
 
 pub fn metrics_of(task: Task) -> &'static [(&'static str, &'static str)] {
     match task {
@@ -63,10 +63,10 @@ pub struct Stat {
     pub n: usize,
 }
 
-pub fn stat(metric: &str, values: &[f64]) -> Stat {
-    let (mean, half) = mean_ci(values);
+pub fn stat(metric: &str, values: &Running) -> Stat {
+    let (mean, half) = values.mean_ci();
     let (lo, hi) = if metric == "success_rate" {
-        wilson(values.iter().filter(|v| **v > 0.5).count(), values.len())
+        wilson(values.successes, values.n)
     } else {
         (mean - half, mean + half)
     };
@@ -74,7 +74,7 @@ pub fn stat(metric: &str, values: &[f64]) -> Stat {
         mean,
         lo,
         hi,
-        n: values.len(),
+        n: values.n,
     }
 }
 
@@ -89,7 +89,7 @@ fn of_split<'a>(rows: &'a [RowKey], split: &str) -> Vec<&'a RowKey> {
     rows.iter().filter(|r| r.split() == split).collect()
 }
 
-fn cell<'a>(cells: &'a Cells, p: &str, row: &RowKey, metric: &'static str) -> Option<&'a Vec<f64>> {
+fn cell<'a>(cells: &'a Cells, p: &str, row: &RowKey, metric: &'static str) -> Option<&'a Running> {
     cells.get(&(p.to_string(), row.clone(), metric))
 }
 
@@ -97,7 +97,7 @@ fn mean_of_means(cells: &Cells, p: &str, cats: &[&RowKey], metric: &'static str)
     let means: Vec<f64> = cats
         .iter()
         .filter_map(|c| cell(cells, p, c, metric))
-        .map(|v| mean_ci(v).0)
+        .map(Running::mean)
         .collect();
     (!means.is_empty()).then(|| means.iter().sum::<f64>() / means.len() as f64)
 }
@@ -112,7 +112,7 @@ fn oracle_shortfalls(rows: &[&RowKey], cells: &Cells) -> Vec<String> {
         .filter(|r| matches!(r, RowKey::Object(_)))
         .filter_map(|r| {
             let v = cell(cells, "oracle", r, "success_rate")?;
-            let mean = mean_ci(v).0;
+            let mean = v.mean();
             (mean < ORACLE_FLOOR).then(|| format!("{} {mean:.2}", r.name()))
         })
         .collect()
@@ -207,7 +207,7 @@ pub fn csv(task: Task, policies: &[String], categories: &[RowKey], cells: &Cells
                 let n: usize = cats
                     .iter()
                     .filter_map(|c| cell(cells, p, c, metric))
-                    .map(Vec::len)
+                    .map(|r| r.n)
                     .sum();
                 if let Some(avg) = mean_of_means(cells, p, &cats, metric) {
                     let _ = writeln!(out, "{p},average,{split},{metric},{avg:.6},,,,{n}");
@@ -299,7 +299,7 @@ pub fn latex(task: Task, policies: &[String], categories: &[RowKey], cells: &Cel
                 for c in &cats {
                     match cell(cells, p, c, metric) {
                         Some(v) => {
-                            let _ = write!(s, " & {:.2}", mean_ci(v).0);
+                            let _ = write!(s, " & {:.2}", v.mean());
                         }
                         None => s.push_str(" & -"),
                     }

@@ -8,8 +8,8 @@ run as Ray tasks, then merged into the report of one run.
 Every argument it does not know goes to `umpnet eval` unchanged. Each task
 runs `umpnet eval ... --shard K/N` with the `umpnet` binary of its machine
 (`--umpnet-bin`, else $UMPNET_BIN, else `umpnet` on PATH) and returns the
-shard's results.json; the driver keeps the shards under OUT/shards and runs
-`umpnet eval merge`. Scenes are pure functions of (seed, task, category,
+shard's results.json and episodes.jsonl; the driver writes each shard under
+OUT/shards as it arrives and runs `umpnet eval merge`, which streams them. Scenes are pure functions of (seed, task, category,
 index), so the merged report equals a single run's, byte for byte except the
 wall time. Model packages and object files must be at the same paths on every
 machine (see docs/ray.md).
@@ -21,6 +21,7 @@ Without --address a local cluster is started (`ray.init()`), with
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import subprocess
@@ -34,8 +35,9 @@ class ShardFailed(RuntimeError):
     """`umpnet eval --shard K/N` exited with an error."""
 
 
-def _run_shard(umpnet_bin: str, eval_args: list[str], cwd: str, shard: str) -> bytes:
-    """One shard, on whichever machine Ray chose: its results.json bytes."""
+def _run_shard(umpnet_bin: str, eval_args: list[str], cwd: str, shard: str) -> dict[str, bytes]:
+    """One shard, on whichever machine Ray chose: its results.json and
+    episodes file, by name."""
     workdir = cwd if os.path.isdir(cwd) else None
     with tempfile.TemporaryDirectory(prefix="umpnet-shard-") as out:
         cmd = [umpnet_bin, "--json", "eval", *eval_args, "--shard", shard, "--out", out]
@@ -46,7 +48,9 @@ def _run_shard(umpnet_bin: str, eval_args: list[str], cwd: str, shard: str) -> b
         if p.returncode != 0:
             tail = (p.stderr.strip().splitlines() or ["(no message)"])[-1]
             raise ShardFailed(f"shard {shard}: umpnet exited {p.returncode}: {tail}")
-        return Path(out, "results.json").read_bytes()
+        results = Path(out, "results.json").read_bytes()
+        name = json.loads(results)["episodes_file"]
+        return {"results.json": results, name: Path(out, name).read_bytes()}
 
 
 def _umpnet_bin(given: str | None) -> str:
@@ -108,35 +112,37 @@ def main(argv: list[str] | None = None) -> int:
         task = ray.remote(num_cpus=args.cpus_per_shard, max_retries=args.retries, retry_exceptions=True)(_run_shard)
         forwarded = [*eval_args, "--threads", str(args.cpus_per_shard)]
         pending = {task.remote(umpnet_bin, forwarded, os.getcwd(), f"{k}/{n}"): k for k in range(1, n + 1)}
-        results: dict[int, bytes] = {}
+        out = args.out
+        shard_root = (out / "shards") if out else Path(tempfile.mkdtemp(prefix="umpnet-shards-"))
+        done: dict[int, Path] = {}
         failed: list[str] = []
         t0 = time.perf_counter()
         while pending:
             ready, _ = ray.wait(list(pending), num_returns=1)
             k = pending.pop(ready[0])
             try:
-                results[k] = ray.get(ready[0])
+                files = ray.get(ready[0])
+                # Written as each arrives, so the driver holds one shard at a time.
+                d = shard_root / f"{k:04d}-of-{n:04d}"
+                d.mkdir(parents=True, exist_ok=True)
+                for name, data in files.items():
+                    (d / Path(name).name).write_bytes(data)
+                del files
+                done[k] = d
                 status = "done"
             except ray.exceptions.RayError as e:  # a task that failed all its tries, or a lost worker
                 cause = getattr(e, "cause", None) or e
                 failed.append(f"shard {k}/{n} failed after {args.retries + 1} attempts: {cause}")
                 status = "FAILED"
             if not args.json:
-                print(f"shard {k}/{n} {status} ({len(results) + len(failed)}/{n}, {time.perf_counter() - t0:.0f} s)",
+                print(f"shard {k}/{n} {status} ({len(done) + len(failed)}/{n}, {time.perf_counter() - t0:.0f} s)",
                       file=sys.stderr, flush=True)  # fmt: skip
     finally:
         ray.shutdown()
     if failed:
         print("\n".join(f"error: {f}" for f in failed), file=sys.stderr)
         return 1
-    out = args.out
-    shard_root = (out / "shards") if out else Path(tempfile.mkdtemp(prefix="umpnet-shards-"))
-    dirs = []
-    for k, data in sorted(results.items()):
-        d = shard_root / f"{k:04d}-of-{n:04d}"
-        d.mkdir(parents=True, exist_ok=True)
-        (d / "results.json").write_bytes(data)
-        dirs.append(str(d))
+    dirs = [str(d) for _, d in sorted(done.items())]
     merge = [umpnet_bin, *(["--json"] if args.json else []), "eval", "merge", *dirs]
     if out:
         merge += ["--out", str(out), *(["--force"] if args.force else [])]
