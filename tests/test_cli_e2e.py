@@ -503,3 +503,22 @@ def test_rrd_recordings_of_an_episode_and_of_chosen_eval_episodes(tmp_path):
     # Without --rrd, --rrd-per-category is a usage error.
     bad = run("eval", "--rrd-per-category", "2", check=False)
     assert bad.returncode == 2 and "--rrd" in bad.stderr
+
+
+def test_outputs_and_counts_that_cannot_be_honoured_are_errors_not_panics():
+    # A full standard output is an error naming it, not a panic.
+    for args in (["objects", "list"], ["--json", "explore", "--category", "Door", "--steps", "2"]):
+        with open("/dev/full", "w") as full:
+            p = subprocess.run([UMPNET, *args], stdout=full, stderr=subprocess.PIPE, text=True, check=False)
+        assert p.returncode == 1 and "writing to standard output" in p.stderr, p.stderr
+        assert "panicked" not in p.stderr
+    # Counts beyond what can run, or that leave nothing to measure, are refused by flag.
+    p = run("explore", "--category", "Door", "--steps", "18446744073709551615", check=False)
+    assert p.returncode == 2 and "--steps" in p.stderr and "1 to 10000" in p.stderr, p.stderr
+    p = run("bench", "--frames", "0", "--actions", "0", check=False)
+    assert p.returncode == 2 and "--frames" in p.stderr and "from 1" in p.stderr, p.stderr
+    # A category listed twice would count its row's episodes twice; a nameless package has no row.
+    p = run("eval", "--categories", "Microwave,Microwave", "--episodes-per-category", "1", check=False)
+    assert p.returncode == 2 and "Microwave is listed twice" in p.stderr, p.stderr
+    p = run("eval", "--categories", "Door", "--policies", "=models/umpnet-small", check=False)
+    assert p.returncode == 2 and "NAME=MODEL_DIR with both parts" in p.stderr, p.stderr

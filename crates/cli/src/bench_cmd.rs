@@ -12,13 +12,21 @@ use umpnet_sim::physics::PhysicsProfile;
 use umpnet_sim::render::{RendererKind, create_renderer};
 use umpnet_sim::scene::Task;
 
+/// A count of timed repetitions: a median needs at least one.
+fn at_least_one(s: &str) -> std::result::Result<usize, String> {
+    match s.trim().parse::<u64>() {
+        Ok(n) if (1..=100_000).contains(&n) => Ok(n as usize),
+        _ => Err("expected a count from 1 to 100000".into()),
+    }
+}
+
 #[derive(clap::Args)]
 pub struct BenchArgs {
-    /// Frames per renderer figure.
-    #[arg(long, default_value_t = 40)]
+    /// Frames per renderer figure (1 to 100000).
+    #[arg(long, default_value_t = 40, value_parser = at_least_one)]
     pub frames: usize,
-    /// Actions per physics figure.
-    #[arg(long, default_value_t = 300)]
+    /// Actions per physics figure (1 to 100000).
+    #[arg(long, default_value_t = 300, value_parser = at_least_one)]
     pub actions: usize,
     /// Measure this URDF only (physics in both profiles, observations at both
     /// resolutions): the figures benches/compare_pybullet.py sets beside PyBullet's.
@@ -218,9 +226,9 @@ pub fn run(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
         }
     }
     if ctx.json {
-        println!("{}", serde_json::Value::Array(rows));
+        outln!("{}", serde_json::Value::Array(rows));
     } else {
-        print!("{}", table(&rows));
+        out!("{}", table(&rows));
     }
     Ok(())
 }

@@ -9,12 +9,23 @@ use umpnet_sim::math::Vec3;
 use umpnet_sim::render::{Frame, RendererKind, create_renderer};
 use umpnet_sim::scene::Task;
 
+/// Most direction actions one episode may take: the paper's budgets are 10
+/// to 50, and an episode's curves hold one value per step.
+pub const MAX_STEPS: usize = 10_000;
+
+fn parse_steps(s: &str) -> std::result::Result<usize, String> {
+    match s.trim().parse::<u64>() {
+        Ok(n) if (1..=MAX_STEPS as u64).contains(&n) => Ok(n as usize),
+        _ => Err(format!("expected a number of steps from 1 to {MAX_STEPS}")),
+    }
+}
+
 #[derive(clap::Args)]
 pub struct EpisodeArgs {
     #[command(flatten)]
     pub object: crate::ObjectArgs,
-    /// Number of direction actions (default: the protocol's budget).
-    #[arg(long)]
+    /// Number of direction actions, 1 to 10000 (default: the protocol's budget).
+    #[arg(long, value_parser = parse_steps)]
     pub steps: Option<usize>,
     /// Evaluation protocol: paper (the paper's evaluation code) or strict.
     #[arg(long, default_value = "paper", value_parser = crate::choice::<umpnet_eval::Protocol>(crate::PROTOCOLS))]
@@ -126,14 +137,14 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         write_gif(&pictures, &out.join("episode.gif"))?;
     }
     if ctx.json {
-        println!("{}", serde_json::to_string(&ep)?);
+        outln!("{}", serde_json::to_string(&ep)?);
         return Ok(());
     }
     let what = scene
         .category
         .map(|c| c.name().to_owned())
         .unwrap_or_else(|| "object".into());
-    println!(
+    outln!(
         "{} episode, {what}, policy {}, scene seed {}",
         if task == Task::Goal {
             "goal"
@@ -147,18 +158,23 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         (true, Some(j)) => format!("joint {j} (moves the link under the pixel)"),
         _ => "no valid link: episode ends".into(),
     };
-    println!(
+    outln!(
         "position: pixel (row {}, col {}) -> {grasped}",
-        ep.pixel.0, ep.pixel.1
+        ep.pixel.0,
+        ep.pixel.1
     );
-    println!(
+    outln!(
         "{:>4}  {:>24}  {:>9}  {:>9}  {:>4}",
-        "step", "direction (world)", "joint", "change", "AoT"
+        "step",
+        "direction (world)",
+        "joint",
+        "change",
+        "AoT"
     );
     for (t, s) in ep.steps.iter().enumerate() {
         let d = s.record.direction;
         let l = &s.record.labels;
-        println!(
+        outln!(
             "{:>4}  ({:>6.3}, {:>6.3}, {:>6.3})  {:>9.3}  {:>+9.3}  {:>+4}",
             t + 1,
             d[0],
@@ -170,26 +186,27 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         );
     }
     if ep.stopped_early {
-        println!("policy stopped after {} steps", ep.steps.len());
+        outln!("policy stopped after {} steps", ep.steps.len());
     }
     let m = &ep.metrics;
     match task {
-        Task::Exploration => println!(
+        Task::Exploration => outln!(
             "novel-state ratio {:.3}  single action effect {:.3}  unique states {}",
             m.novel_state_ratio,
             m.single_action_effect,
             m.unique_states.last().copied().unwrap_or(0.0)
         ),
-        Task::Goal => println!(
+        Task::Goal => outln!(
             "normalized distance {:.3}  success {}",
-            m.normalized_distance, m.success
+            m.normalized_distance,
+            m.success
         ),
     }
     if task == Task::Exploration {
         print_axis_estimate(&ep)?;
     }
     if let Some(out) = &a.out {
-        println!("pictures in {}", out.display());
+        outln!("pictures in {}", out.display());
     }
     Ok(())
 }
@@ -208,7 +225,7 @@ fn print_axis_estimate(ep: &umpnet_eval::episode::Episode) -> Result<()> {
         .map(|s| Vector3::from(s.gripper_in_world))
         .collect();
     let (Some(est), Some(j)) = (infer_joint(&dirs, &pts), ep.joint) else {
-        println!("joint axis: too few effective actions to infer");
+        outln!("joint axis: too few effective actions to infer");
         return Ok(());
     };
     let model = std::sync::Arc::new(ep.scene.object.load()?);
@@ -229,7 +246,7 @@ fn print_axis_estimate(ep: &umpnet_eval::episode::Episode) -> Result<()> {
     } else {
         "revolute"
     };
-    println!(
+    outln!(
         "joint axis: inferred {kind} ({:.3}, {:.3}, {:.3}); true {true_kind} ({:.3}, {:.3}, {:.3}); angle error {:.1} deg",
         axis[0],
         axis[1],

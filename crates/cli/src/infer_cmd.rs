@@ -315,6 +315,6 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         "stop": r.direction.is_none(),
         "model": model,
     });
-    println!("{out}");
+    outln!("{out}");
     Ok(())
 }

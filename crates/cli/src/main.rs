@@ -1,4 +1,23 @@
 //! `umpnet`: the command line of the UMPNet simulator and policy runtime.
+/// `println!` that returns a failed write (a full disk or device behind
+/// stdout) as an error with `?`, where `println!` would panic.
+macro_rules! outln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout(), $($t)*)
+            .map_err(|e| anyhow::anyhow!("writing to standard output: {e}"))?
+    }};
+}
+
+/// `print!` that returns a failed write as an error (see [`outln!`]).
+macro_rules! out {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        write!(std::io::stdout(), $($t)*)
+            .map_err(|e| anyhow::anyhow!("writing to standard output: {e}"))?
+    }};
+}
+
 mod bench_cmd;
 mod episode_cmd;
 mod eval_cmd;

@@ -58,12 +58,12 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
             )?;
             let secs = t0.elapsed().as_secs_f64();
             if ctx.json {
-                println!(
+                outln!(
                     "{}",
                     serde_json::json!({"out": out, "objects": cats.len() as u32 * per_category, "seconds": secs})
                 );
             } else {
-                println!(
+                outln!(
                     "wrote {} objects ({} categories x {per_category}) to {} in {secs:.2} s",
                     cats.len() as u32 * per_category,
                     cats.len(),
@@ -85,11 +85,13 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
                 })
                 .collect();
             if ctx.json {
-                println!("{}", serde_json::to_string(&rows)?);
+                outln!("{}", serde_json::to_string(&rows)?);
             } else {
-                println!(
+                outln!(
                     "{:<18} {:<6} {:>5}  joint types",
-                    "category", "split", "steps"
+                    "category",
+                    "split",
+                    "steps"
                 );
                 for r in rows {
                     let kinds: Vec<&str> = r
@@ -97,7 +99,7 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
                         .and_then(|j| j.as_array())
                         .map(|a| a.iter().filter_map(|v| v.as_str()).collect())
                         .unwrap_or_default();
-                    println!(
+                    outln!(
                         "{:<18} {:<6} {:>5}  {}",
                         r.get("category").and_then(|v| v.as_str()).unwrap_or(""),
                         r.get("split").and_then(|v| v.as_str()).unwrap_or(""),

@@ -67,6 +67,13 @@ pub fn resolve(
     let mut seen = std::collections::HashSet::new();
     for spec in specs {
         let name = spec.split_once('=').map_or(spec.as_str(), |(n, _)| n);
+        if let Some((n, d)) = spec.split_once('=')
+            && (n.trim().is_empty() || d.trim().is_empty())
+        {
+            return Err(usage(format!(
+                "policy `{spec}`: expected NAME=MODEL_DIR with both parts"
+            )));
+        }
         if !seen.insert(name) {
             return Err(usage(format!(
                 "policy `{name}` is listed twice; give each policy its own name (NAME=MODEL_DIR)"

@@ -58,12 +58,12 @@ pub fn run(ctx: &Ctx, a: &RenderArgs) -> Result<()> {
         .context("encoding depth_mm.png")?;
     umpnet_sim::fsio::write_atomic(&a.out.join("depth_mm.png"), png.get_ref())?;
     if ctx.json {
-        println!(
+        outln!(
             "{}",
             serde_json::json!({"out": a.out, "renderer": env.renderer_name(), "depth_range_m": [lo, hi]})
         );
     } else {
-        println!(
+        outln!(
             "wrote color.png depth.png ({lo:.2}-{hi:.2} m) segmentation.png normals.png depth.npy depth_mm.png camera.json to {} ({})",
             a.out.display(),
             env.renderer_name()

@@ -212,6 +212,14 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
             Some(s) => return Err(usage(format!("--split {s}: expected train, test or all"))),
         }
     };
+    for (i, c) in categories.iter().enumerate() {
+        if categories.get(..i).is_some_and(|before| before.contains(c)) {
+            return Err(usage(format!(
+                "--categories: {} is listed twice (its row would count its episodes twice)",
+                c.name()
+            )));
+        }
+    }
     if a.episodes_per_category == 0 {
         return Err(usage("--episodes-per-category must be at least 1"));
     }
@@ -377,9 +385,9 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     pb.reset_eta();
     let stop = crate::signals::stop_flag();
     let t0 = std::time::Instant::now();
-    // Enough scenes per chunk to keep every thread busy; a chunk's episodes
+    // Enough scenes per chunk that waiting for its slowest costs little; a chunk's episodes
     // are written (and committed) in canonical order before the next starts.
-    let chunk = pool.current_num_threads().max(1) * 8;
+    let chunk = pool.current_num_threads().max(1) * 32;
     let sink = |i: u64, outcomes: Vec<umpnet_eval::bench::EpisodeOutcome>| -> Result<()> {
         for o in &outcomes {
             let text = serde_json::to_string(o)?;
@@ -436,7 +444,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     if let Some(dir) = &a.rrd {
         let n = record(&cfg, &policies, &evaluated, dir, a.rrd_per_category)?;
         if !ctx.json {
-            println!("recorded {n} episodes to {}", dir.display());
+            outln!("recorded {n} episodes to {}", dir.display());
         }
     }
     Ok(())
@@ -507,16 +515,16 @@ fn finish(ctx: &Ctx, report: &Report, out: Option<&Path>, scenes: u64) -> Result
         None => Vec::new(),
     };
     if ctx.json {
-        println!("{}", report.summary()?);
+        outln!("{}", report.summary()?);
         return Ok(());
     }
     if !report.shard.is_all() {
-        println!(
+        outln!(
             "shard {}: its share of the scenes only; `umpnet eval merge` joins the shards",
             report.shard
         );
     }
-    print!("{}", report.table());
+    out!("{}", report.table());
     // Which images each policy saw (learned packages see their input resolution).
     let mut groups: BTreeMap<[u32; 2], Vec<&str>> = BTreeMap::new();
     for (name, res) in &report.run.resolutions {
@@ -528,9 +536,9 @@ fn finish(ctx: &Ctx, report: &Report, out: Option<&Path>, scenes: u64) -> Result
         .map(|([h, w], names)| format!("{} at {h}x{w}", names.join(", ")))
         .collect();
     if !seen.is_empty() {
-        println!("images: {} (same scenes for all)", seen.join("; "));
+        outln!("images: {} (same scenes for all)", seen.join("; "));
     }
-    println!(
+    outln!(
         "{} episodes ({} scenes x {} policies) in {:.1} s; {} failed",
         report.agg.episodes,
         scenes,
@@ -543,7 +551,7 @@ fn finish(ctx: &Ctx, report: &Report, out: Option<&Path>, scenes: u64) -> Result
         if report.episodes_file.is_some() {
             files.insert(0, stream::EPISODES);
         }
-        println!("wrote {} to {}", files.join(", "), dir.display());
+        outln!("wrote {} to {}", files.join(", "), dir.display());
     }
     Ok(())
 }
