@@ -522,3 +522,37 @@ def test_outputs_and_counts_that_cannot_be_honoured_are_errors_not_panics():
     assert p.returncode == 2 and "Microwave is listed twice" in p.stderr, p.stderr
     p = run("eval", "--categories", "Door", "--policies", "=models/umpnet-small", check=False)
     assert p.returncode == 2 and "NAME=MODEL_DIR with both parts" in p.stderr, p.stderr
+
+
+def test_inputs_that_are_not_regular_files_or_lie_about_their_size_are_refused_unread(tmp_path):
+    frame = tmp_path / "frame"
+    run("render", "--category", "Microwave", "--seed", "1", "--out", str(frame))
+    good = {"--rgb": frame / "color.png", "--depth": frame / "depth.npy", "--camera": frame / "camera.json"}
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+
+    def infer(**swap):
+        paths = good | {f"--{k}": v for k, v in swap.items()}
+        return run("infer", *[str(x) for kv in paths.items() for x in kv], check=False)
+
+    # A FIFO or a device would block or never end: refused by name before a read.
+    for flag in ("rgb", "depth", "camera"):
+        p = infer(**{flag: fifo})
+        assert p.returncode == 2 and "fifo" in p.stderr and "not a regular file" in p.stderr, (flag, p.stderr)
+    p = infer(camera=Path("/dev/zero"))
+    assert p.returncode == 2 and "/dev/zero" in p.stderr and "not a regular file" in p.stderr, p.stderr
+    # A .npy header that claims more than the file holds is refused before allocating it.
+    data = good["--depth"].read_bytes()
+    h, w = np.load(good["--depth"]).shape
+    lie = tmp_path / "lie.npy"
+    lie.write_bytes(data.replace(f"({h}, {w})".encode(), f"({h * 1000}, {w})".encode(), 1))
+    p = infer(depth=lie)
+    assert p.returncode == 1 and "lie.npy" in p.stderr and "but the file holds" in p.stderr, p.stderr
+    # A material library that is a FIFO is skipped (colours are decoration), not waited on.
+    run("objects", "generate", "--per-category", "1", "--categories", "Door", "--out", str(tmp_path / "objs"))
+    urdf = next((tmp_path / "objs").rglob("mobility.urdf"))
+    obj = next(urdf.parent.rglob("*.obj"))
+    obj.write_text("mtllib trap.mtl\nusemtl m\n" + obj.read_text())
+    os.mkfifo(obj.with_name("trap.mtl"))
+    out = json.loads(run("--json", "explore", "--object", str(urdf), "--steps", "2").stdout)
+    assert len(out["steps"]) == 2

@@ -43,9 +43,94 @@ pub struct InferArgs {
     pub seed: u64,
 }
 
+/// Largest image or depth file `infer` reads (a 4K float64 depth is 70 MB).
+const MAX_IMAGE_BYTES: u64 = 256 << 20;
+
+/// An input file checked before it is opened: a regular file within `max`
+/// bytes (a FIFO would block, a device never end).
+fn input(path: &Path, max: u64) -> Result<u64> {
+    umpnet_sim::fsio::check_input(path, max).map_err(|e| usage(e.to_string()))
+}
+
+/// Checks that a .npy header's 2-D shape and dtype account for the file's
+/// size exactly, before a reader allocates what the header claims.
+fn check_npy_header(path: &Path, size: u64) -> Result<()> {
+    use std::io::Read;
+    let bad = |what: String| anyhow::anyhow!("{}: {what}", path.display());
+    let mut head = Vec::new();
+    std::fs::File::open(path)
+        .with_context(|| format!("reading {}", path.display()))?
+        .take(64 << 10)
+        .read_to_end(&mut head)
+        .with_context(|| format!("reading {}", path.display()))?;
+    if head.get(..6) != Some(b"\x93NUMPY".as_slice()) {
+        return Err(bad("not a .npy file (no \\x93NUMPY magic)".into()));
+    }
+    let (len, start) = match head.get(6) {
+        Some(1) => (
+            head.get(8..10)
+                .and_then(|b| <[u8; 2]>::try_from(b).ok())
+                .map(|b| u64::from(u16::from_le_bytes(b))),
+            10u64,
+        ),
+        Some(2 | 3) => (
+            head.get(8..12)
+                .and_then(|b| <[u8; 4]>::try_from(b).ok())
+                .map(|b| u64::from(u32::from_le_bytes(b))),
+            12u64,
+        ),
+        _ => (None, 0),
+    };
+    let Some(len) = len else {
+        return Err(bad("unknown .npy version".into()));
+    };
+    let header = head
+        .get(start as usize..(start + len) as usize)
+        .map(|h| String::from_utf8_lossy(h).into_owned())
+        .ok_or_else(|| bad("header longer than the file".into()))?;
+    let item: u64 = if header.contains("f8") {
+        8
+    } else if header.contains("f4") {
+        4
+    } else if header.contains("u2") {
+        2
+    } else {
+        return Err(bad(
+            "dtype is not float32, float64 or uint16; expected a depth array".into(),
+        ));
+    };
+    let shape: Vec<u64> = header
+        .split_once("'shape':")
+        .and_then(|(_, rest)| rest.split_once('(')?.1.split_once(')'))
+        .map(|(dims, _)| {
+            dims.split(',')
+                .filter(|d| !d.trim().is_empty())
+                .filter_map(|d| d.trim().parse().ok())
+                .collect()
+        })
+        .unwrap_or_default();
+    let [h, w] = shape[..] else {
+        return Err(bad(format!(
+            "shape {shape:?}: expected a 2-D (height, width) array"
+        )));
+    };
+    let data = h
+        .checked_mul(w)
+        .and_then(|n| n.checked_mul(item))
+        .and_then(|n| n.checked_add(start + len));
+    if data != Some(size) {
+        return Err(bad(format!(
+            "the header says {h}x{w} values of {item} bytes, but the file holds {size} bytes"
+        )));
+    }
+    Ok(())
+}
+
 /// A 2-D depth array from a .npy file: float32 or float64 metres, or uint16
 /// units of `scale` metres.
 fn read_npy(path: &Path, scale: f32) -> Result<(usize, usize, Vec<f32>)> {
+    let size = input(path, MAX_IMAGE_BYTES)?;
+    check_npy_header(path, size)?;
     use ndarray::Array2;
     use ndarray_npy::{ReadNpyError, ReadNpyExt};
     let open = || {
@@ -80,6 +165,7 @@ fn read_npy(path: &Path, scale: f32) -> Result<(usize, usize, Vec<f32>)> {
 /// A depth image: only 16-bit grey holds depth; an 8-bit one would be
 /// rescaled by 257 without a word.
 fn read_depth_png(path: &Path, scale: f32) -> Result<(usize, usize, Vec<f32>)> {
+    input(path, MAX_IMAGE_BYTES)?;
     let img = image::open(path).with_context(|| format!("reading {}", path.display()))?;
     let image::DynamicImage::ImageLuma16(di) = img else {
         return Err(usage(format!(
@@ -96,6 +182,7 @@ fn read_depth_png(path: &Path, scale: f32) -> Result<(usize, usize, Vec<f32>)> {
 }
 
 fn load_frame(rgb: &Path, depth: &Path, a: &InferArgs, camera: &Camera) -> Result<OwnedFrame> {
+    input(rgb, MAX_IMAGE_BYTES)?;
     let img = image::open(rgb)
         .with_context(|| format!("reading {}", rgb.display()))?
         .to_rgb8();
@@ -148,8 +235,8 @@ impl Camera {
     fn from_args(a: &InferArgs) -> Result<Camera> {
         let (intrinsics, pose) = match &a.camera {
             Some(path) => {
-                let text = std::fs::read_to_string(path)
-                    .with_context(|| format!("reading {}", path.display()))?;
+                let text =
+                    umpnet_sim::fsio::read_text(path, 1 << 20).map_err(|e| usage(e.to_string()))?;
                 let f: CameraFile = serde_json::from_str(&text).map_err(|e| {
                     usage(format!(
                         "{}: {e}; expected {{\"intrinsics\": {{\"fx\", \"fy\", \"cx\", \"cy\"}}, \"world_from_camera\": [4 rows of 4]}} as umpnet render writes",

@@ -8,6 +8,9 @@ use ort::value::TensorRef;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
+/// Largest model.json read (the shipped ones are a few KB).
+const MAX_META_BYTES: u64 = 1 << 20;
+
 pub const FORMAT_VERSION: u32 = 1;
 
 #[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
@@ -180,6 +183,26 @@ impl ModelPackage {
         ort_library: Option<&Path>,
     ) -> Result<Self> {
         let meta_path = dir.join("model.json");
+        // A few KB: a FIFO or device would block or never end, and a huge
+        // file is not a model.json.
+        match std::fs::metadata(&meta_path) {
+            Ok(m) if !m.is_file() => {
+                return Err(pkg_err(
+                    &meta_path,
+                    "not a regular file (a folder, FIFO or device)",
+                ));
+            }
+            Ok(m) if m.len() > MAX_META_BYTES => {
+                return Err(pkg_err(
+                    &meta_path,
+                    format!(
+                        "{} bytes; model.json is limited to {MAX_META_BYTES}",
+                        m.len()
+                    ),
+                ));
+            }
+            _ => {}
+        }
         let text = std::fs::read_to_string(&meta_path)
             .map_err(|e| pkg_err(&meta_path, format!("cannot read: {e}")))?;
         let meta: ModelMeta = serde_json::from_str(&text)

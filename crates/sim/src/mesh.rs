@@ -7,6 +7,8 @@ use std::path::Path;
 /// Mesh files larger than this are refused before reading (PartNet-Mobility's
 /// meshes are a few MB).
 pub const MAX_OBJ_BYTES: u64 = 256 << 20;
+/// Largest MTL (material library) file read for an OBJ's colour.
+pub const MAX_MTL_BYTES: u64 = 16 << 20;
 /// Triangles in one mesh (PartNet-Mobility's largest have about 100k).
 pub const MAX_TRIANGLES: usize = 4_000_000;
 
@@ -159,6 +161,7 @@ impl TriMesh {
     /// `v/vt/vn` and negative indices accepted); everything else ignored.
     pub fn read_obj(path: &Path) -> Result<TriMesh> {
         if let Ok(meta) = std::fs::metadata(path)
+            && meta.is_file()
             && meta.len() > MAX_OBJ_BYTES
         {
             return Err(SimError::Mesh {
@@ -170,10 +173,7 @@ impl TriMesh {
                 ),
             });
         }
-        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::fsio::read_text(path, MAX_OBJ_BYTES)?;
         Self::parse_obj(&text, path)
     }
 
@@ -182,7 +182,7 @@ impl TriMesh {
     /// reads it. None when the OBJ names no material or the MTL cannot be
     /// read: colours are decoration, and the URDF's colour stands in.
     pub fn obj_material_color(path: &Path) -> Option<[f32; 3]> {
-        let text = std::fs::read_to_string(path).ok()?;
+        let text = crate::fsio::read_text(path, MAX_OBJ_BYTES).ok()?;
         let mut library = None;
         let mut material = None;
         for line in text.lines() {
@@ -198,7 +198,8 @@ impl TriMesh {
         }
         // Only a file beside the OBJ: an object must not make the loader read elsewhere.
         let library = library.filter(|l| !l.contains(['/', '\\']) && l != "..")?;
-        let mtl = std::fs::read_to_string(path.with_file_name(library)).ok()?;
+        // A material library is a few lines; a FIFO, device or huge file is skipped.
+        let mtl = crate::fsio::read_text(&path.with_file_name(library), MAX_MTL_BYTES).ok()?;
         let material = material?;
         let mut current = false;
         for line in mtl.lines() {

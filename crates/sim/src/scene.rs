@@ -59,10 +59,8 @@ impl ObjectSource {
             offset_z: f32,
             scale: f32,
         }
-        let text = std::fs::read_to_string(&meta).map_err(|source| SimError::Io {
-            file: meta.clone(),
-            source,
-        })?;
+        // A few numbers: a FIFO, a device or a huge file is refused unread.
+        let text = crate::fsio::read_text(&meta, 1 << 20)?;
         let m: Meta = serde_json::from_str(&text).map_err(|e| {
             SimError::InvalidScene(format!(
                 "{}: {e}; expected `orientation` (4 numbers, x y z w), `offset_z` and `scale`",

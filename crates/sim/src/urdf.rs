@@ -152,6 +152,7 @@ const MAX_QUOTED: usize = 80;
 /// Reads and validates a URDF file.
 pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
     if let Ok(meta) = std::fs::metadata(path)
+        && meta.is_file()
         && meta.len() > MAX_URDF_BYTES
     {
         return Err(urdf_err(
@@ -162,10 +163,7 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
             ),
         ));
     }
-    let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
-        file: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::fsio::read_text(path, MAX_URDF_BYTES)?;
     parse_urdf(&text, path)
 }
 
