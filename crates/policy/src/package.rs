@@ -10,6 +10,10 @@ use std::sync::Mutex;
 
 /// Largest model.json read (the shipped ones are a few KB).
 const MAX_META_BYTES: u64 = 1 << 20;
+/// Largest input side a package may declare (the paper's images are 480x640).
+pub const MAX_SIDE: usize = 2048;
+/// Largest embedding width a package may declare.
+pub const MAX_EMBEDDING: usize = 1 << 16;
 
 pub const FORMAT_VERSION: u32 = 1;
 
@@ -235,6 +239,26 @@ impl ModelPackage {
             return Err(pkg_err(
                 &meta_path,
                 "`input.height`, `input.width` and `embedding` must be positive",
+            ));
+        }
+        // Checked before any tensor of these sizes is made: a declared
+        // 20000x20000 input would allocate 16 GB, u64::MAX would overflow.
+        if meta.input.height > MAX_SIDE || meta.input.width > MAX_SIDE {
+            return Err(pkg_err(
+                &meta_path,
+                format!(
+                    "`input` is {}x{}; each side is limited to {MAX_SIDE} (the paper's is 480x640)",
+                    meta.input.height, meta.input.width
+                ),
+            ));
+        }
+        if meta.embedding > MAX_EMBEDDING {
+            return Err(pkg_err(
+                &meta_path,
+                format!(
+                    "`embedding` is {}; limited to {MAX_EMBEDDING}",
+                    meta.embedding
+                ),
             ));
         }
         let has = |b: &str| meta.branches.iter().any(|x| x == b);

@@ -159,6 +159,22 @@ fn mismatches_are_reported_in_one_line() {
         e.contains("`dist_embedding`: expected shape [-1, 7], found [-1, 16]"),
         "{e}"
     );
+    // Sizes that would overflow or allocate gigabytes are refused before any tensor exists.
+    let e = copy(&|m| m["input"]["height"] = u64::MAX.into());
+    assert!(
+        e.contains("model.json") && e.contains("limited to 2048"),
+        "{e}"
+    );
+    let e = copy(&|m| {
+        m["input"]["height"] = 20_000.into();
+        m["input"]["width"] = 20_000.into();
+    });
+    assert!(
+        e.contains("20000x20000") && e.contains("limited to 2048"),
+        "{e}"
+    );
+    let e = copy(&|m| m["embedding"] = u64::MAX.into());
+    assert!(e.contains("`embedding`") && e.contains("limited to"), "{e}");
     let e = copy(&|m| m["files"]["position"] = "nope.onnx".into());
     assert!(e.contains("nope.onnx: missing"), "{e}");
     assert!(!e.contains('\n'));

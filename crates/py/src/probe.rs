@@ -31,10 +31,24 @@ pub(crate) fn directions_2d(a: &PyReadonlyArray2<'_, f32>) -> PyResult<Vec<[f32;
             "directions has shape {s:?}, expected (K, 3) float32"
         )));
     }
+    check_k(s[0])?;
     let v = a.as_array();
     (0..s[0])
         .map(|k| checked([v[[k, 0]], v[[k, 1]], v[[k, 2]]], &k.to_string()))
         .collect()
+}
+
+/// Most directions probed per environment in one call: each is a simulated
+/// action (about a millisecond), and a call cannot be interrupted.
+pub(crate) const MAX_PROBES: usize = 1024;
+
+fn check_k(k: usize) -> PyResult<()> {
+    if k > MAX_PROBES {
+        return Err(PyValueError::new_err(format!(
+            "directions: {k} per environment; at most {MAX_PROBES} per call (split larger sets into calls)"
+        )));
+    }
+    Ok(())
 }
 
 /// The (n, k, 3) array as n lists of k finite, non-zero directions.
@@ -45,6 +59,7 @@ pub(crate) fn directions(a: &PyReadonlyArray3<'_, f32>, n: usize) -> PyResult<Ve
             "directions has shape {s:?}, expected ({n}, K, 3) float32"
         )));
     }
+    check_k(s[1])?;
     let v = a.as_array();
     let mut out = Vec::with_capacity(n);
     for i in 0..n {

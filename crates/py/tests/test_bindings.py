@@ -301,6 +301,10 @@ def test_probe_directions_gives_dense_labels_without_changing_the_episode():
         vec.probe_directions(np.zeros((2, 4, 3), dtype=np.float32))
     with pytest.raises(ValueError, match="non-zero"):
         vec.probe_directions(np.zeros((3, 4, 3), dtype=np.float32))
+    # An unbounded K would run for minutes with no way to stop it: refused up front.
+    many = np.ones((3, 1025, 3), dtype=np.float32)
+    with pytest.raises(ValueError, match="at most 1024 per call"):
+        vec.probe_directions(many)
 
 
 def test_training_labels_use_the_reference_thresholds():

@@ -227,7 +227,7 @@ impl TriMesh {
             what,
         };
         let mut mesh = TriMesh::default();
-        let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
+        let mut faces: Vec<(usize, Vec<(i64, i64)>)> = Vec::new();
         let mut triangles = 0usize;
         for (i, line) in text.lines().enumerate() {
             let lineno = i + 1;
@@ -270,6 +270,12 @@ impl TriMesh {
                             format!("more than {MAX_TRIANGLES} triangles in one mesh"),
                         ));
                     }
+                    // A negative index counts back from the vertices read so far.
+                    let seen = mesh.positions.len() as i64;
+                    let idx: Vec<(i64, i64)> = idx
+                        .into_iter()
+                        .map(|k| (k, if k < 0 { seen + k + 1 } else { k }))
+                        .collect();
                     faces.push((lineno, idx));
                 }
                 _ => {}
@@ -279,12 +285,15 @@ impl TriMesh {
         for (lineno, idx) in faces {
             let resolved = idx
                 .iter()
-                .map(|&k| {
-                    let r = if k < 0 { n + k } else { k - 1 };
+                .map(|&(k, one_based)| {
+                    let r = one_based - 1;
                     if (0..n).contains(&r) {
                         Ok(r as u32)
                     } else {
-                        Err(err(lineno, format!("face index {k} out of range 1..={n}")))
+                        Err(err(
+                            lineno,
+                            format!("face index {k} out of range 1..={n} (or -1 back to -N)"),
+                        ))
                     }
                 })
                 .collect::<Result<Vec<_>>>()?;
@@ -326,6 +335,33 @@ mod tests {
         assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
         let again = TriMesh::parse_obj(&m.to_obj(), Path::new("q.obj")).unwrap();
         assert_eq!(again, m);
+    }
+
+    #[test]
+    fn negative_indices_count_back_from_the_vertices_read_so_far() {
+        // Two quads, each written with relative indices right after its vertices.
+        let quad = |z: f32| format!("v 0 0 {z}\nv 1 0 {z}\nv 1 1 {z}\nv 0 1 {z}\nf -4 -3 -2 -1\n");
+        let relative = format!("{}{}", quad(0.0), quad(1.0));
+        let m = TriMesh::parse_obj(&relative, Path::new("r.obj")).unwrap();
+        let absolute = relative.replacen("f -4 -3 -2 -1", "f 1 2 3 4", 1).replacen(
+            "f -4 -3 -2 -1",
+            "f 5 6 7 8",
+            1,
+        );
+        let a = TriMesh::parse_obj(&absolute, Path::new("a.obj")).unwrap();
+        assert_eq!(m, a);
+        assert_eq!(
+            m.triangles,
+            vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]
+        );
+        // Back past the first vertex: named as written.
+        let e = TriMesh::parse_obj(
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nf -4 -2 -1\n",
+            Path::new("b.obj"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("b.obj:4") && e.contains("face index -4"), "{e}");
     }
 
     #[test]
