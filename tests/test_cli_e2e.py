@@ -556,3 +556,37 @@ def test_inputs_that_are_not_regular_files_or_lie_about_their_size_are_refused_u
     os.mkfifo(obj.with_name("trap.mtl"))
     out = json.loads(run("--json", "explore", "--object", str(urdf), "--steps", "2").stdout)
     assert len(out["steps"]) == 2
+
+
+def _poisoned(fixture: str, dest: Path, file: str, output: str, value: float) -> Path:
+    """A copy of the fixture package whose `file` gives `output` times `value`."""
+    import shutil
+
+    import onnx
+    from onnx import helper
+
+    shutil.copytree(fixture, dest)
+    model = onnx.load(str(dest / file))
+    graph = model.graph
+    inner = f"{output}_clean"
+    for node in graph.node:
+        node.output[:] = [inner if o == output else o for o in node.output]
+    graph.node.append(helper.make_node("Constant", [], ["poison"], value_float=value))
+    graph.node.append(helper.make_node("Mul", [inner, "poison"], [output]))
+    onnx.save(model, str(dest / file))
+    return dest
+
+
+def test_network_outputs_that_are_not_numbers_or_out_of_range_are_errors_naming_the_network(tmp_path):
+    fixture = fixture_package()
+    cases = [
+        ("position.onnx", "affordance", float("nan"), "explore"),
+        ("direction_decoder.onnx", "distance", float("nan"), "goal"),
+        ("direction_decoder.onnx", "aot_probs", float("inf"), "explore"),
+        ("direction_decoder.onnx", "distance", -100.0, "goal"),
+    ]
+    for k, (file, output, value, task) in enumerate(cases):
+        pkg = _poisoned(fixture, tmp_path / f"p{k}", file, output, value)
+        p = run(task, "--category", "Door", "--policy", f"bad={pkg}", check=False)
+        assert p.returncode == 1 and file in p.stderr and f"output `{output}`" in p.stderr, (file, output, p.stderr)
+        assert '"success": true' not in p.stdout

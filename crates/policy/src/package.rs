@@ -12,6 +12,9 @@ use std::sync::Mutex;
 const MAX_META_BYTES: u64 = 1 << 20;
 /// Largest input side a package may declare (the paper's images are 480x640).
 pub const MAX_SIDE: usize = 2048;
+/// How far below zero a regressed distance may come (metres) before the
+/// network counts as broken.
+pub const MAX_DISTANCE_NOISE: f32 = 0.05;
 /// Largest embedding width a package may declare.
 pub const MAX_EMBEDDING: usize = 1 << 16;
 
@@ -513,9 +516,11 @@ impl ModelPackage {
             let a = output(&out, "affordance", &file)?
                 .try_extract_array::<f32>()
                 .map_err(|e| ort_err(&file, e))?;
-            a.to_owned()
+            let a = a
+                .to_owned()
                 .into_dimensionality()
-                .map_err(|e| ort_err(&file, e))
+                .map_err(|e| ort_err(&file, e))?;
+            finite(a, &file, "affordance")
         })
     }
 
@@ -550,12 +555,13 @@ impl ModelPackage {
                 ])
                 .map_err(e)?;
             let get = |n: &str| -> Result<Array2<f32>> {
-                output(&out, n, &file)?
+                let a = output(&out, n, &file)?
                     .try_extract_array::<f32>()
                     .map_err(e)?
                     .to_owned()
                     .into_dimensionality()
-                    .map_err(|x| ort_err(&file, x))
+                    .map_err(|x| ort_err(&file, x))?;
+                finite(a, &file, n)
             };
             Ok((get("dist_embedding")?, get("aot_embedding")?))
         })
@@ -600,10 +606,22 @@ impl ModelPackage {
                 ])
                 .map_err(er)?;
             let get1 = |k: &str| -> Result<Array1<f32>> {
-                output(&out, k, &file)?.try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
+                let a = output(&out, k, &file)?.try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))?;
+                let a = finite(a, &file, k)?;
+                in_range(&a, &file, k, match k {
+                    // A distance is a magnitude, regressed: a little below 0 is
+                    // the regression's noise, a lot is a broken network.
+                    "distance" => (-MAX_DISTANCE_NOISE, f32::INFINITY),
+                    "success_prob" => (0.0, 1.0),
+                    _ => (f32::NEG_INFINITY, f32::INFINITY),
+                })?;
+                Ok(a)
             };
             let get2 = |k: &str| -> Result<Array2<f32>> {
-                output(&out, k, &file)?.try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))
+                let a = output(&out, k, &file)?.try_extract_array::<f32>().map_err(er)?.to_owned().into_dimensionality().map_err(|x| ort_err(&file, x))?;
+                let a = finite(a, &file, k)?;
+                in_range(&a, &file, k, (0.0, 1.0))?;
+                Ok(a)
             };
             // Columns in the package's class order -> canonical (-1, 0, +1).
             let canonical = |p: Array2<f32>| -> Result<Array2<f32>> {
@@ -689,13 +707,52 @@ impl ModelPackage {
                     "aot_embedding" => TensorRef::from_array_view(b.view().into_dyn()).map_err(er)?,
                 ])
                 .map_err(er)?;
-            output(&out, self.decoder_outputs.first().map_or("", String::as_str), &file)?
+            let name = self.decoder_outputs.first().map_or("", String::as_str);
+            let a = output(&out, name, &file)?
                 .try_extract_array::<f32>()
                 .map_err(er)?
                 .to_owned()
                 .into_dimensionality()
-                .map_err(|x| ort_err(&file, x))
+                .map_err(|x| ort_err(&file, x))?;
+            finite(a, &file, name)
         })
+    }
+}
+
+/// A network's output with every value finite, or an error naming the
+/// network's file and the output: a NaN would otherwise pass as a choice
+/// (the first pixel, a "success").
+fn finite<D: ndarray::Dimension>(
+    a: ndarray::Array<f32, D>,
+    file: &Path,
+    name: &str,
+) -> Result<ndarray::Array<f32, D>> {
+    match a.iter().position(|v| !v.is_finite()) {
+        None => Ok(a),
+        Some(i) => Err(pkg_err(
+            file,
+            format!(
+                "output `{name}` holds {} (value {i} of {}); the network is broken or its input out of range",
+                a.iter().nth(i).copied().unwrap_or(f32::NAN),
+                a.len()
+            ),
+        )),
+    }
+}
+
+/// Every value of a network's output within `lo..=hi`, or an error naming it.
+fn in_range<D: ndarray::Dimension>(
+    a: &ndarray::Array<f32, D>,
+    file: &Path,
+    name: &str,
+    (lo, hi): (f32, f32),
+) -> Result<()> {
+    match a.iter().find(|v| !(lo..=hi).contains(*v)) {
+        None => Ok(()),
+        Some(v) => Err(pkg_err(
+            file,
+            format!("output `{name}` holds {v}, outside [{lo}, {hi}]"),
+        )),
     }
 }
 
