@@ -11,6 +11,10 @@ pub const MAX_OBJ_BYTES: u64 = 256 << 20;
 pub const MAX_MTL_BYTES: u64 = 16 << 20;
 /// Triangles in one mesh (PartNet-Mobility's largest have about 100k).
 pub const MAX_TRIANGLES: usize = 4_000_000;
+/// Most triangles an object's visuals may hold in all (meshes reused by
+/// several visuals count each time): what one GPU vertex buffer holds
+/// (2M x 72 bytes, under wgpu's default 256 MiB), and bounded memory.
+pub const MAX_TOTAL_TRIANGLES: usize = 2_000_000;
 
 /// An indexed triangle mesh in some frame named by its owner.
 #[derive(Clone, Debug, Default, PartialEq)]

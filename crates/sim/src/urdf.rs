@@ -771,6 +771,7 @@ fn build_model(
         .collect();
     let mut link_index = HashMap::new();
     let mut links = Vec::with_capacity(robot.links.len());
+    let mut total_triangles = 0usize;
     for (i, l) in robot.links.iter().enumerate() {
         if link_index.insert(l.name.clone(), i).is_some() {
             return Err(urdf_err(path, format!("two links are named `{}`", l.name)));
@@ -779,6 +780,18 @@ fn build_model(
         for v in &l.visual {
             let mesh = geometry_mesh(&v.geometry, base_dir, path, &l.name, meshes)?
                 .transformed(&pose_of(&v.origin));
+            total_triangles = total_triangles.saturating_add(mesh.triangles.len());
+            if total_triangles > crate::mesh::MAX_TOTAL_TRIANGLES {
+                return Err(urdf_err(
+                    path,
+                    format!(
+                        "link `{}`: the object's visuals hold more than {} triangles in all \
+                         (each use of a mesh counts); simplify the meshes",
+                        l.name,
+                        crate::mesh::MAX_TOTAL_TRIANGLES
+                    ),
+                ));
+            }
             visuals.push(VisualModel {
                 mesh_in_link: mesh,
                 color: mtl_color(&v.geometry, base_dir)
@@ -1190,6 +1203,33 @@ mod tests {
             );
         }
         assert!(parse_urdf(&mesh("1e-6 1 1e6"), &urdf).is_ok());
+    }
+
+    #[test]
+    fn the_total_of_all_visuals_is_capped_even_when_they_reuse_one_mesh() {
+        use std::fmt::Write as _;
+        let dir = tempfile::tempdir().unwrap();
+        // A fan of 250,000 triangles; eight uses are the cap, nine are over it.
+        let n = 250_000;
+        let mut obj = String::new();
+        for k in 0..n + 2 {
+            let _ = writeln!(obj, "v {} {} 0", k as f32 * 1e-6, (k % 2) as f32 * 1e-3);
+        }
+        for k in 0..n {
+            let _ = writeln!(obj, "f 1 {} {}", k + 2, k + 3);
+        }
+        std::fs::write(dir.path().join("big.obj"), obj).unwrap();
+        let urdf = dir.path().join("mobility.urdf");
+        let uses = |k: usize| {
+            let visual = r#"<visual><geometry><mesh filename="big.obj"/></geometry></visual>"#;
+            wrap(&format!(r#"<link name="base">{}</link>"#, visual.repeat(k)))
+        };
+        assert!(parse_urdf(&uses(8), &urdf).is_ok());
+        let e = parse_urdf(&uses(9), &urdf).unwrap_err().to_string();
+        assert!(
+            e.contains("mobility.urdf") && e.contains("more than 2000000 triangles in all"),
+            "{e}"
+        );
     }
 
     #[test]

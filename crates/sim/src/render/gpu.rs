@@ -297,6 +297,15 @@ impl Renderer for GpuRenderer {
                 }
             }
         }
+        // wgpu panics on a buffer over the device's limit: refuse it here.
+        let bytes = (verts.len() as u64).saturating_mul(std::mem::size_of::<Vertex>() as u64);
+        let limit = self.gpu.device.limits().max_buffer_size;
+        if bytes > limit {
+            return Err(SimError::Render(format!(
+                "the scene's meshes need {bytes} bytes of vertices ({} triangles); this GPU takes at most {limit} in one buffer (simplify the meshes)",
+                verts.len() / 3
+            )));
+        }
         let _guard = self
             .gpu
             .lock
