@@ -326,6 +326,19 @@ impl ModelPackage {
         let mut pool = Vec::new();
         for _ in 0..sessions.max(1) {
             let open = |name: &str| -> Result<(PathBuf, Session)> {
+                // A file beside model.json: `../` or an absolute path would make
+                // a package load networks from anywhere.
+                let plain = std::path::Path::new(name)
+                    .file_name()
+                    .is_some_and(|f| f == std::ffi::OsStr::new(name));
+                if !plain {
+                    return Err(pkg_err(
+                        &meta_path,
+                        format!(
+                            "`files` names `{name}`; expected a file name in the package folder"
+                        ),
+                    ));
+                }
                 let file = dir.join(name);
                 if !file.is_file() {
                     return Err(pkg_err(&file, "missing (named in model.json `files`)"));

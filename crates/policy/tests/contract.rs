@@ -175,6 +175,13 @@ fn mismatches_are_reported_in_one_line() {
     );
     let e = copy(&|m| m["embedding"] = u64::MAX.into());
     assert!(e.contains("`embedding`") && e.contains("limited to"), "{e}");
+    for outside in ["../position.onnx", "/etc/passwd"] {
+        let e = copy(&|m| m["files"]["position"] = outside.into());
+        assert!(
+            e.contains(outside) && e.contains("expected a file name in the package folder"),
+            "{e}"
+        );
+    }
     let e = copy(&|m| m["files"]["position"] = "nope.onnx".into());
     assert!(e.contains("nope.onnx: missing"), "{e}");
     assert!(!e.contains('\n'));

@@ -203,7 +203,16 @@ impl TriMesh {
         // Only a file beside the OBJ: an object must not make the loader read elsewhere.
         let library = library.filter(|l| !l.contains(['/', '\\']) && l != "..")?;
         // A material library is a few lines; a FIFO, device or huge file is skipped.
-        let mtl = crate::fsio::read_text(&path.with_file_name(library), MAX_MTL_BYTES).ok()?;
+        let mtl_path = path.with_file_name(library);
+        // Not through a link to elsewhere: the library must really sit beside the OBJ.
+        let beside = match (mtl_path.canonicalize(), path.canonicalize()) {
+            (Ok(m), Ok(o)) => m.parent() == o.parent(),
+            _ => false,
+        };
+        if !beside {
+            return None;
+        }
+        let mtl = crate::fsio::read_text(&mtl_path, MAX_MTL_BYTES).ok()?;
         let material = material?;
         let mut current = false;
         for line in mtl.lines() {

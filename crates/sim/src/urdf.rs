@@ -663,7 +663,7 @@ fn geometry_mesh(
                 urdf_err(
                     file,
                     format!(
-                        "link `{link}`: mesh path `{}` leaves the object's folder; mesh paths must be relative and inside it",
+                        "link `{link}`: mesh path `{}` leaves the object's folder (by its name or through a symbolic link); mesh paths must be relative and inside it",
                         quoted(filename)
                     ),
                 )
@@ -714,8 +714,9 @@ fn mtl_color(g: &urdf_rs::Geometry, base_dir: &Path) -> Option<[f32; 3]> {
 }
 
 /// Where a mesh reference points, or None when it would leave the object's
-/// folder (an absolute path, or `..` above it): an object file must not make
-/// the loader read arbitrary files.
+/// folder (an absolute path, `..` above it, or a symbolic link whose target
+/// is outside it): an object file must not make the loader read arbitrary
+/// files.
 fn mesh_path_in(base_dir: &Path, filename: &str) -> Option<PathBuf> {
     use std::path::Component;
     let rel = Path::new(
@@ -732,7 +733,13 @@ fn mesh_path_in(base_dir: &Path, filename: &str) -> Option<PathBuf> {
             Component::RootDir | Component::Prefix(_) => return None,
         }
     }
-    Some(base_dir.join(rel))
+    let path = base_dir.join(rel);
+    // A symbolic link inside the folder may still point out of it: where the
+    // file really is must be inside the folder too.
+    match (path.canonicalize(), base_dir.canonicalize()) {
+        (Ok(real), Ok(base)) if !real.starts_with(&base) => None,
+        _ => Some(path),
+    }
 }
 
 fn material_color(m: &Option<urdf_rs::Material>, named: &HashMap<String, [f32; 3]>) -> [f32; 3] {
@@ -1203,6 +1210,46 @@ mod tests {
             );
         }
         assert!(parse_urdf(&mesh("1e-6 1 1e6"), &urdf).is_ok());
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_mesh_reached_through_a_link_to_outside_the_folder_is_refused() {
+        let outside = tempfile::tempdir().unwrap();
+        std::fs::write(
+            outside.path().join("secret.obj"),
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("textured_objs")).unwrap();
+        std::os::unix::fs::symlink(
+            outside.path().join("secret.obj"),
+            dir.path().join("textured_objs/m.obj"),
+        )
+        .unwrap();
+        // A linked folder is the same case.
+        std::os::unix::fs::symlink(outside.path(), dir.path().join("elsewhere")).unwrap();
+        let urdf = dir.path().join("mobility.urdf");
+        for name in ["textured_objs/m.obj", "elsewhere/secret.obj"] {
+            let text = wrap(&format!(
+                r#"<link name="base"><visual><geometry><mesh filename="{name}"/></geometry></visual></link>"#
+            ));
+            let e = parse_urdf(&text, &urdf).unwrap_err().to_string();
+            assert!(e.contains("through a symbolic link"), "{name}: {e}");
+        }
+        // A link that stays inside the folder is fine.
+        std::fs::copy(
+            outside.path().join("secret.obj"),
+            dir.path().join("real.obj"),
+        )
+        .unwrap();
+        std::os::unix::fs::symlink(dir.path().join("real.obj"), dir.path().join("alias.obj"))
+            .unwrap();
+        let text = wrap(
+            r#"<link name="base"><visual><geometry><mesh filename="alias.obj"/></geometry></visual></link>"#,
+        );
+        assert!(parse_urdf(&text, &urdf).is_ok());
     }
 
     #[test]

@@ -495,7 +495,10 @@ fn record(
                 .map(|(_, text)| serde_json::from_str::<serde_json::Value>(text))
                 .transpose()?;
             if let (Ok(ep), Some(evaluated)) = (&replayed, evaluated)
-                && Some(&serde_json::to_value(ep)?) != evaluated.get("episode")
+                // Both through the same text: the evaluated episode was read
+                // back from its JSON line, f32 as written there.
+                && Some(&serde_json::from_str::<serde_json::Value>(&serde_json::to_string(ep)?)?)
+                    != evaluated.get("episode")
             {
                 anyhow::bail!(
                     "{}: the replayed episode differs from the evaluated one (a determinism bug)",
