@@ -27,7 +27,7 @@ fn finite3(name: &str, v: [f32; 3]) -> PyResult<Vec3> {
     }
 }
 
-#[pyclass(module = "umpnet", unsendable)]
+#[pyclass(module = "umpnet")]
 pub struct Articulation {
     model: Arc<ObjectModel>,
     art: SimArticulation,

@@ -224,6 +224,13 @@ def test_articulation_reports_bad_input_by_name(tmp_path):
     assert out["steps"] > 0 and 0 < out["seconds"] <= wall
     with pytest.raises(ValueError, match="scale"):
         umpnet.Articulation(urdf, scale=-1.0)
+    # Usable from another thread (a worker pool, a GUI): no "unsendable" panic.
+    import concurrent.futures
+
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        names = pool.submit(art.joint_names).result()
+        moved = pool.submit(art.move_gripper, [0, -1, 0], joint).result()
+    assert names == art.joint_names() and moved["steps"] > 0
 
 
 def _gym_returns(env_id, policy, episodes=6):

@@ -21,7 +21,11 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         file: file.to_path_buf(),
         source,
     };
-    std::fs::write(&tmp, bytes).map_err(|e| io(&tmp, e))?;
+    if let Err(e) = std::fs::write(&tmp, bytes) {
+        // A full disk leaves a partial temporary: it must not stay behind.
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(&tmp, e));
+    }
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         io(path, e)
