@@ -340,10 +340,8 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     let mut writer = match &a.out {
         Some(dir) if a.resume => {
             let r = stream::resume(dir, &run, shard, &mut agg, |s, text| {
-                if recorded(s)
-                    && let Ok(again) = Scored::parse(text)
-                {
-                    evaluated.push((again, text.to_owned()));
+                if recorded(&s) {
+                    evaluated.push((s, text));
                 }
             })?;
             wall_before = r.wall_seconds;

@@ -239,14 +239,15 @@ pub struct Resumed {
 }
 
 /// Reads back the run in `dir`, checks it is the evaluation `run` describes
-/// (shard included), feeds its whole scenes to `agg` (and `keep`), and drops
+/// (shard included), feeds its whole scenes to `agg` (then hands each line,
+/// parsed and as text, to `keep`), and drops
 /// a scene whose episodes were not all written.
 pub fn resume(
     dir: &Path,
     run: &RunInfo,
     shard: Shard,
     agg: &mut Aggregate,
-    mut keep: impl FnMut(&Scored, &str),
+    mut keep: impl FnMut(Scored, String),
 ) -> Result<Resumed> {
     if dir.join("results.json").exists() {
         return Err(usage(format!(
@@ -296,9 +297,9 @@ pub fn resume(
         if scene.len() == per_scene {
             for (s, text) in scene.drain(..) {
                 agg.add(&s);
-                keep(&s, &text);
                 hash.update(text.as_bytes());
                 hash.update(b"\n");
+                keep(s, text);
             }
             whole_bytes = reader.bytes;
         }
