@@ -443,3 +443,101 @@ def test_training_with_auxiliary_fields_runs_and_exports_the_same_package_contra
     assert umpnet.Policy(str(pkg)).resolution == (48, 64)
     with pytest.raises(SystemExit):
         train.parse_args(["--out", str(out), "--aux-fields", "1", "--ray", "2"])
+
+
+def _dense_data(cfg, seed: int, sequences: int):
+    """Replay buffers filled the way training fills them (random grasps on the
+    object, random and probed directions, the reference's labels)."""
+    from umpnet_train.models import UMPNet
+    from umpnet_train.replay import DenseReplay
+
+    env = umpnet.VecEnv(
+        cfg.num_envs, category=collect.TRAIN_CATEGORIES, seed=seed, resolution=(cfg.height, cfg.width), copy=True
+    )
+    shape = (cfg.height, cfg.width, 10)
+    replay, dense = Replay(4096, shape), DenseReplay(1024, shape, cfg.dense_labels)
+    stats = {"sim_s": 0, "probe_s": 0, "positions": 0, "position_success": 0, "steps": 0, "dense_labels": 0}
+    stats["aot_counts"] = [0, 0, 0]
+    rng, model = np.random.default_rng(seed), UMPNet(cfg)
+    for _ in range(sequences // cfg.num_envs):
+        collect.collect(env, model, cfg, replay, dense, 0, rng, stats)
+    return replay, dense
+
+
+def _held_out_scores(model, replay, dense) -> tuple[float, float]:
+    """(the training objective 100 MSE + CE, class-balanced AoT accuracy) over
+    every held-out dense label."""
+    import torch
+
+    n = len(dense)
+    k = dense.vectors.shape[1]
+    model.eval()
+    with torch.no_grad():
+        de, ae = model.encoder(
+            collect.to_torch(dense.images[:n]),
+            collect.to_torch(replay.ref_images[dense.ref[:n]]),
+            collect.to_long(dense.pixels[:n]),
+        )
+        dist, logits = model.decoder(
+            de.repeat_interleave(k, 0), ae.repeat_interleave(k, 0), collect.to_torch(dense.vectors[:n].reshape(-1, 3))
+        )
+    model.train()
+    aot = dense.aot[:n].reshape(-1) + 1
+    weights = train.class_weights(collect.to_long(aot), 3)
+    ce = torch.nn.functional.cross_entropy(logits, collect.to_long(aot), reduction="none")
+    mse = (dist - collect.to_torch(dense.dist[:n].reshape(-1))) ** 2
+    objective = float(((100 * mse + ce) * weights).sum())
+    pred = logits.argmax(1).numpy()
+    accuracy = float(np.mean([np.mean(pred[aot == c] == c) for c in range(3) if (aot == c).any()]))
+    return objective, accuracy
+
+
+def test_a_short_seeded_run_of_the_real_update_learns_what_held_out_states_show():
+    """The training update (train.Learner, as `train` runs it) on the direction
+    network must lower the objective and raise the AoT accuracy on states of
+    other scenes. A loop that does not update, or that updates the wrong way,
+    leaves both where they started."""
+    import torch
+    from umpnet_train.models import UMPNet
+
+    collect.set_device(torch.device("cpu"))
+    torch.manual_seed(0)
+    cfg = make_config("smoke", dense_labels=8, num_envs=8, seq_start=6, seq_max=6, lr=3e-3)
+    replay, dense = _dense_data(cfg, seed=0, sequences=240)
+    held_replay, held_dense = _dense_data(cfg, seed=1000, sequences=80)
+    model = UMPNet(cfg)
+    learner = train.Learner(model, cfg)
+    before = _held_out_scores(model, held_replay, held_dense)
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        learner.update(replay, dense, rng, train_position=False)
+    after = _held_out_scores(model, held_replay, held_dense)
+    # Measured (seed 0): objective 11.2 -> 2.3, balanced AoT accuracy 0.25 -> 0.36;
+    # without the optimiser step the objective rises to 54.
+    assert after[0] < 0.5 * before[0], (before, after)
+    assert after[1] > before[1] + 0.05, (before, after)
+
+
+def test_learner_modes_update_the_same_fp32_weights():
+    """Every learner mode trains the fp32 model that checkpoints and export
+    read; an unknown mode is an error naming the choices."""
+    import torch
+    from umpnet_train.models import UMPNet
+
+    collect.set_device(torch.device("cpu"))
+    cfg = make_config("smoke", dense_labels=4, num_envs=4)
+    replay, dense = _dense_data(cfg, seed=3, sequences=8)
+    for mode in ("fp32", "channels-last", "bf16"):
+        torch.manual_seed(0)
+        model = UMPNet(cfg)
+        first = {k: v.clone() for k, v in model.state_dict().items()}
+        out = train.Learner(model, cfg, mode).update(replay, dense, np.random.default_rng(0))
+        assert np.isfinite(float(out["loss/total"])), mode
+        changed = [
+            k for k, v in model.state_dict().items() if v.dtype.is_floating_point and not torch.equal(v, first[k])
+        ]
+        assert changed and all(model.state_dict()[k].dtype == torch.float32 for k in changed), mode
+    with pytest.raises(ValueError, match="channels-last"):
+        train.Learner(UMPNet(cfg), cfg, "fp16")
+    with pytest.raises(ValueError, match="learner 'fp16'"):
+        make_config("smoke", learner="fp16")

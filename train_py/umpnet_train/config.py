@@ -79,6 +79,9 @@ class Config:
     threads: int = 2
     renderer: str = "auto"
     device: str = "auto"  # auto (cuda when available), cpu, cuda
+    # How updates run (train.LEARNER_MODES): fp32, channels-last, bf16, compile.
+    # Weights and checkpoints are fp32 whatever the mode.
+    learner: str = "fp32"
 
 
 PRESETS = {
@@ -146,6 +149,8 @@ def make_config(preset: str = "paper", **overrides) -> Config:
         raise ValueError(f"direction_net {values['direction_net']!r}: expected 'context' or 'plain'")
     if values.get("labels", "reference") not in ("reference", "delta"):
         raise ValueError(f"labels {values['labels']!r}: expected 'reference' or 'delta'")
+    if values.get("learner", "fp32") not in ("fp32", "channels-last", "bf16", "compile"):
+        raise ValueError(f"learner {values['learner']!r}: expected fp32, channels-last, bf16 or compile")
     if values.get("dense_labels", 0) < 0:
         raise ValueError(f"dense_labels {values['dense_labels']}: expected 0 (off) or a positive count")
     return Config(**values)

@@ -33,7 +33,7 @@ from tqdm import tqdm
 from .collect import TRAIN_CATEGORIES, collect, device, sequence_length, set_device, to_long, to_torch
 from .config import config_from_checkpoint, make_config
 from .export import export_model
-from .models import UMPNet
+from .models import UMPNet, UNet
 from .replay import DenseReplay, Replay
 
 
@@ -144,6 +144,43 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
     return out
 
 
+# How the learner runs its update (bench_learner measures each on this machine):
+# fp32 eager; channels-last memory format; bf16 autocast of the forward passes;
+# torch.compile of the U-Nets and decoder.
+LEARNER_MODES = ("fp32", "channels-last", "bf16", "compile")
+
+
+class Learner:
+    """The model, its optimiser and one update (losses, backward, Adam step),
+    run the way `mode` says. Modes change speed, not what is learned: the
+    weights, the optimiser state and the checkpoints are the same fp32 ones."""
+
+    def __init__(self, model: UMPNet, cfg, mode: str = "fp32"):
+        if mode not in LEARNER_MODES:
+            raise ValueError(f"learner mode {mode!r}: expected one of {list(LEARNER_MODES)}")
+        self.model, self.cfg, self.mode = model, cfg, mode
+        self.opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=tuple(cfg.adam_betas))
+        if mode == "channels-last":
+            model.to(memory_format=torch.channels_last)
+        if mode == "compile":
+            # Bound methods, not modules, are compiled: the state_dict keys stay
+            # those of the eager model, so checkpoints and export are unchanged.
+            for m in model.modules():
+                if isinstance(m, UNet):
+                    m.forward_with_features = torch.compile(m.forward_with_features, dynamic=True)
+            model.decoder.forward = torch.compile(model.decoder.forward, dynamic=True)
+
+    def update(self, replay, dense, rng, train_position=True, train_direction=True) -> dict:
+        """One optimisation step; returns the losses and metrics (detached)."""
+        with torch.autocast(device().type, dtype=torch.bfloat16, enabled=self.mode == "bf16"):
+            out = losses(self.model, self.cfg, replay, dense, rng, train_position, train_direction)
+        if out["loss/total"].requires_grad:  # nothing to train during the warm-up
+            self.opt.zero_grad()
+            out["loss/total"].float().backward()
+            self.opt.step()
+        return {k: v.detach().float() for k, v in out.items()}
+
+
 def load_position(model: UMPNet, widths, path: Path) -> dict:
     """Copy the position net's weights from the checkpoint at `path` into
     `model` and stop their training. Returns where they came from (for the
@@ -249,6 +286,12 @@ def parse_args(argv=None):
         "encoder (the simulator's dense per-pixel labels; 0: off, the paper)",
     )
     p.add_argument("--device", help="auto, cpu or cuda")
+    p.add_argument(
+        "--learner",
+        choices=LEARNER_MODES,
+        help="how updates run: fp32 (default; the fastest on a CPU without AMX, see bench_learner), "
+        "channels-last, bf16 autocast, compile",
+    )
     p.add_argument("--direction-widths", help="DirectionNet U-Net widths per level, e.g. 8,16,32,64")
     p.add_argument(
         "--direction-net",
@@ -290,6 +333,7 @@ def parse_args(argv=None):
         dense_labels=a.dense_labels,
         aux_fields=a.aux_fields,
         device=a.device,
+        learner=a.learner,
         save_replay=a.save_replay,
         direction_widths=_widths(p, a.direction_widths),
         direction_net=a.direction_net,
@@ -348,7 +392,8 @@ def main(argv=None) -> int:
         )
     )
     model = UMPNet(cfg).to(device())
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=tuple(cfg.adam_betas))
+    learner = Learner(model, cfg, cfg.learner)
+    opt = learner.opt
     sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_decay_every, gamma=cfg.lr_decay)
     start, wall_before = 0, 0.0
     segments = []  # each invocation of a run: the epoch it started at and its code's commit
@@ -470,15 +515,11 @@ def main(argv=None) -> int:
         model.train()
         t0 = time.perf_counter()
         for _ in range(cfg.iterations_per_epoch):
-            out_l = losses(
-                model, cfg, replay, dense, rng,
+            out_l = learner.update(
+                replay, dense, rng,
                 train_position=epoch >= cfg.position_start_epoch and not cfg.freeze_position,
                 train_direction=epoch >= cfg.direction_start_epoch,
             )  # fmt: skip
-            if out_l["loss/total"].requires_grad:  # nothing to train during the warm-up
-                opt.zero_grad()
-                out_l["loss/total"].backward()
-                opt.step()
         sched.step()
         stats["learn_s"] += time.perf_counter() - t0
         for k, v in out_l.items():
