@@ -199,7 +199,6 @@ def main() -> None:
     data = {
         "about": "PyBullet's answers to fixed actions; written by tests/reference/golden.py",
         "pybullet": pybullet.getAPIVersion(),
-        "bounds": {k: {"mean": m, "max": x} for k, (m, x) in D.BOUNDS.items()},
         "cases": [record(r) for r in results],
     }
     path = OUT / "pybullet_actions.json"

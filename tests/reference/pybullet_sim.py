@@ -128,6 +128,11 @@ class ReferenceSim:
         s = self.bc.getLinkState(self.body, link, computeForwardKinematics=True)
         return s[0], s[1]
 
+    def link_world_frame(self, link: int):
+        """The link's URDF frame in world (position, xyzw quaternion)."""
+        s = self.bc.getLinkState(self.body, link, computeForwardKinematics=True)
+        return s[4], s[5]
+
     def mount_position(self) -> np.ndarray:
         q = [self.bc.getJointState(self.mount, i)[0] for i in range(3)]
         return np.array(q) + MOUNT_HOME

@@ -4,6 +4,7 @@ the same URDFs, grasp points and scripted directions (differential.py)."""
 import os
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import differential as D
@@ -47,11 +48,93 @@ def _print(results):
     print(D.table(results))
 
 
+# Bounds sit at about 2.5x the deviations measured when they were set (both
+# simulators are deterministic; `differential.py` prints the measured values),
+# so a regression of a few times fails. Rad for hinges, m for slides; link
+# points in m. A joint that neither simulator moves is held to OTHER_JOINTS.
+OTHER_JOINTS = 0.0005
+# Per case: grasped joint's mean and max |d|, link points' max distance.
+CABINET = {
+    "door, pull along -y": (0.0014, 0.0016, 0.0007),
+    "door, pull along its tangent": (0.0014, 0.0027, 0.0011),
+    "drawer, 5 pulls then 5 pushes": (0.0002, 0.0005, 0.0005),
+    "door, grasp 5 cm from the hinge": (0.00025, 0.00025, 0.0001),
+    "lid lifted (no <inertial>)": (0.0004, 0.0015, 0.0008),
+    "door, yawed 30 deg and scaled 0.55, along its tangent": (0.003, 0.0056, 0.0013),
+}
+
+
+@dataclass(frozen=True)
+class KindBounds:
+    mean: float  # over every action of the kind in the group
+    case_mean: float  # the largest mean of one case
+    max: float  # the largest single action
+    links: float  # link points, m
+    other_joints: float = OTHER_JOINTS
+
+
+FAMILIES = {
+    "revolute": KindBounds(mean=0.0026, case_mean=0.0135, max=0.035, links=0.014),
+    "prismatic": KindBounds(mean=0.0002, case_mean=0.0004, max=0.00045, links=0.00045),
+}
+IMPORTED_BOUNDS = {
+    "revolute": KindBounds(mean=0.0035, case_mean=0.007, max=0.022, links=0.0065),
+    "prismatic": KindBounds(mean=0.0002, case_mean=0.00025, max=0.0004, links=0.00045, other_joints=0.00035),
+}
+# Chains and light parts, where PyBullet's 50 sweeps are far from converged
+# (golden.known_gaps): stated bounds at about 1.5x today's gap, so that the
+# gap cannot grow unseen. Mean, max, other joints, link points.
+GAPS = {
+    "flap on a door, pulled out": (1.6, 1.6, 0.32, 0.17),
+    "flap on an open door, pulled along its tangent": (0.35, 0.67, 0.7, 0.5),
+    "tray out of a door, then across": (0.012, 0.027, 0.62, 0.044),
+    "50 g switch flicked up and down": (0.6, 0.6, OTHER_JOINTS, 0.025),
+}
+
+
+def _within(r, mean, worst, links, others=OTHER_JOINTS):
+    """The failures of one result against its bounds, as text."""
+    found = {
+        "mean": (r.deviation.mean(), mean),
+        "max": (r.deviation.max(), worst),
+        "link points": (r.link_deviation, links),
+        "other joints": (r.other_joint_deviation, others),
+    }
+    return [f"{r.case.name}: {k} {v:.5f} > {b}" for k, (v, b) in found.items() if v > b]
+
+
+def _check_kinds(results, bounds):
+    failures = []
+    for kind, b in bounds.items():
+        of_kind = [r for r in results if r.case.kind == kind]
+        assert of_kind, kind
+        mean = float(np.concatenate([r.deviation for r in of_kind]).mean())
+        if mean > b.mean:
+            failures.append(f"{kind}: mean {mean:.5f} over {len(of_kind)} cases > {b.mean}")
+        for r in of_kind:
+            failures += _within(r, b.case_mean, b.max, b.links, b.other_joints)
+    assert not failures, "\n".join(failures)
+
+
 def test_cabinet_trajectories_match_pybullet(cabinet):
     _print(cabinet.values())
-    for r in cabinet.values():
-        mean, worst = D.BOUNDS[r.case.kind]
-        assert r.deviation.mean() <= mean and r.deviation.max() <= worst, D.table([r])
+    assert set(cabinet) == set(CABINET)
+    failures = [f for name, r in cabinet.items() for f in _within(r, *CABINET[name])]
+    assert not failures, "\n".join(failures)
+
+
+def test_chains_and_light_parts_stay_within_their_stated_gaps(tmp_path):
+    import golden
+
+    with D.StdoutToStderr():
+        results = {c.name: D.run_case(c) for c in golden.known_gaps(tmp_path)}
+    _print(results.values())
+    assert set(results) == set(GAPS)
+    failures = [f for name, r in results.items() for f in _within(r, *GAPS[name][:2], GAPS[name][3], GAPS[name][2])]
+    assert not failures, "\n".join(failures)
+    # The 50 g switch: PyBullet flicks it to a limit, umpnet's solve does not move it.
+    switch = results["50 g switch flicked up and down"]
+    assert np.abs(switch.umpnet).max() < 0.01 and np.abs(switch.reference).max() > 0.3
 
 
 def test_the_reference_behaviours_hold_in_both(cabinet):
@@ -76,11 +159,7 @@ def test_every_generated_family_matches_pybullet_under_random_directions(familie
     _print(families)
     categories = {r.case.name.split("/")[0] for r in families}
     assert len(categories) == 22
-    summary = D.summarize(families)
-    print(summary)
-    for kind, (mean, worst) in D.BOUNDS.items():
-        assert summary[kind]["mean"] <= mean, summary
-        assert summary[kind]["max"] <= worst, summary
+    _check_kinds(families, FAMILIES)
     # The suite exercises real motion, not only stalls.
     moved = np.concatenate([np.abs(np.diff(r.reference)) for r in families])
     assert (moved > 0.1).sum() > 50
@@ -94,10 +173,8 @@ def test_imported_mjcf_objects_match_pybullet_at_their_scene_scale(imported):
     assert kinds == {"revolute", "prismatic"}
     several = [r for r in imported if "/two_door_cabinet " in r.case.name]
     assert len(several) == 3, [r.case.name for r in several]
-    for r in imported:
-        # Imported objects are tested at the scale their object_meta_info.json gives.
-        assert r.case.scale != 1.0
-        mean, worst = D.BOUNDS[r.case.kind]
-        assert r.deviation.mean() <= mean and r.deviation.max() <= worst, D.table([r])
+    # Imported objects are tested at the scale their object_meta_info.json gives.
+    assert all(r.case.scale != 1.0 for r in imported)
+    _check_kinds(imported, IMPORTED_BOUNDS)
     moved = np.concatenate([np.abs(np.diff(r.reference)) for r in imported])
     assert (moved > 0.05).sum() > 10
