@@ -172,7 +172,24 @@ def test_broken_object_file_exits_1_naming_the_file(tmp_path):
 def test_learned_policy_episode_and_infer(tmp_path):
     fixture = fixture_package()
     out = json.loads(run("--json", "explore", "--category", "Door", "--policy", "umpnet", "--model", fixture).stdout)
-    assert out["policy"] == "umpnet"
+    assert out["policy"] == "umpnet" and out["scene"]["category"] == "Door"
+    # The shipped model on four door scenes: a grasp on the door every time,
+    # directions that are unit vectors taken from its own scored candidates,
+    # and doors that move; the same command gives the same episode.
+    for seed in range(4):
+        args = ("--json", "explore", "--category", "Door", "--seed", str(seed), "--policy", "umpnet")
+        text = run(*args).stdout
+        ep = json.loads(text)
+        assert ep["valid_position"] and ep["steps"], (seed, ep["pixel"])
+        for step in ep["steps"]:
+            d = np.array(step["record"]["direction"])
+            assert abs(np.linalg.norm(d) - 1) < 1e-5
+            cands = step["candidates"]
+            assert len(cands["directions"]) == len(cands["distance"]) == len(cands["aot"]) > 1
+            assert min(np.abs(np.array(cands["directions"]) - d).max(axis=1)) < 1e-6
+        assert len(ep["metrics"]["unique_states"]) == ep["budget"] and ep["metrics"]["novel_state_ratio"] > 0
+        assert any(step["record"]["labels"]["moved"] for step in ep["steps"])
+        assert run(*args).stdout == text
     run("render", "--category", "Microwave", "--seed", "3", "--resolution", "96x128", "--out", str(tmp_path))
     cam = json.loads((tmp_path / "camera.json").read_text())
     k = cam["intrinsics"]

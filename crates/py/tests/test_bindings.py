@@ -190,8 +190,18 @@ def test_physics_profile_reaches_the_scene_and_changes_what_a_pull_does():
         assert env.scene["physics"] == physics
         _, labels = episode(env, steps=2)
         moved[physics] = [r for r, _, _ in labels]
-    # The reference moves a free grasp point about 0.13 m per action, the ideal 0.18 m.
     assert moved["reference"] != moved["ideal"]
+    # What the profile changes: on a free drawer pulled straight out, the
+    # reference (PyBullet's mount) moves it 0.13 m per 0.18 m action, the
+    # ideal profile the full 0.18 m; both stop at its 0.4 m limit.
+    cabinet = str(Path(__file__).resolve().parents[3] / "crates" / "sim" / "tests" / "data" / "cabinet.urdf")
+    for physics, per_action in [("reference", 0.130), ("ideal", 0.18)]:
+        art = umpnet.Articulation(cabinet, physics=physics, position=(0.0, -0.5, 0.0))
+        art.grasp([0.0, -0.76, 0.25], "drawer")
+        after = [art.move_gripper([0.0, -1.0, 0.0], "drawer_slide")["joint_after"] for _ in range(4)]
+        np.testing.assert_allclose(after[0], per_action, atol=0.003, err_msg=physics)
+        np.testing.assert_allclose(after[1], 2 * per_action, atol=0.006, err_msg=physics)
+        np.testing.assert_allclose(after[3], 0.4, atol=0.002, err_msg=physics)
     with pytest.raises(ValueError, match="reference or ideal"):
         umpnet.Env(physics="bullet")
 
