@@ -98,21 +98,24 @@ lint: install
 test-rust: fixture
 	UMPNET_REQUIRE_WGPU=1 cargo test --release $(CARGO_FEATURES)
 
+# pytest with the skip guard: under CI=true a skipped test fails its suite (tests/plugins/skipguard.py).
+PYTEST = PYTHONPATH=tests/plugins PYTEST_ADDOPTS="-p skipguard" $(PY) -m pytest -q
+
 test-python: build py fixture
 	# One process per suite: native libraries loaded by one suite cannot affect another.
-	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py
+	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_e2e.py tests/test_skipguard.py
 	# Ray on a local cluster: sharded evaluation, retries.
-	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_ray.py
+	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_ray.py
 	# Evaluation at any size: flat memory, resume after a kill, merging many shards.
-	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_eval_scale.py
+	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_eval_scale.py
 	# Objects made elsewhere: the MJCF importer (MuJoCo) on Meta-World, and eval --objects.
-	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_objects.py
+	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_objects.py
 	# The differential suite: the `reference` physics against PyBullet.
-	UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/reference
+	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/reference
 	# umpnet's wgpu and PyBullet's EGL renderer in one process (its own: EGL state is per process).
-	$(PY) -m pytest -q tests/test_egl_coexistence.py
-	$(PY) -m pytest -q crates/py/tests
-	UMPNET_BIN=$(UMPNET) PYTHONPATH=train_py $(PY) -m pytest -q train_py/tests
+	$(PYTEST) tests/test_egl_coexistence.py
+	$(PYTEST) crates/py/tests
+	UMPNET_BIN=$(UMPNET) PYTHONPATH=train_py:tests/plugins PYTEST_ADDOPTS="-p skipguard" $(PY) -m pytest -q train_py/tests
 
 # The audit's deliberate bugs (and every hand-made mutant with --all below) must fail the tests.
 mutants-ci: build py fixture
@@ -137,7 +140,7 @@ test: lint test-rust test-python mutants-ci test-rerun
 test-rerun: lint-rerun fixture
 	cargo test --release $(RERUN)
 	cargo build --release $(RERUN)
-	UMPNET_REQUIRE_RERUN=1 UMPNET_BIN=$(UMPNET) $(PY) -m pytest -q tests/test_cli_e2e.py -k rrd
+	UMPNET_REQUIRE_RERUN=1 UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_e2e.py -k rrd
 
 clean:
 	cargo clean
