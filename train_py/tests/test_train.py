@@ -541,3 +541,12 @@ def test_learner_modes_update_the_same_fp32_weights():
         train.Learner(UMPNet(cfg), cfg, "fp16")
     with pytest.raises(ValueError, match="learner 'fp16'"):
         make_config("smoke", learner="fp16")
+
+
+def test_a_bad_preset_or_learner_is_a_usage_error_not_a_traceback(capsys):
+    for argv in (["--preset", "tiny"], ["--learner", "fp16"]):
+        with pytest.raises(SystemExit) as e:
+            train.parse_args([*argv, "--out", "runs/x"])
+        assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "unknown preset 'tiny'" in err and "--learner: invalid choice: 'fp16'" in err, err

@@ -8,7 +8,7 @@ simulator also labels K directions at every visited state (the policy's best
 candidates and random ones), and the decoder trains on all of them.
 How the data is gathered lives in collect.py; this file learns from it.
 
-    python -m umpnet_train.train --preset cpu-small --out ../runs/small --export ../models/umpnet-small
+    python -m umpnet_train.train --preset cpu-small --out ../runs/small --export ../runs/small-package
 """
 
 from __future__ import annotations
@@ -319,26 +319,29 @@ def parse_args(argv=None):
         p.error(f"--aux-fields {a.aux_fields}: expected a weight in [0, 1000)")
     if a.ray and a.aux_fields:
         p.error("--aux-fields collects the fields in this process: use it without --ray")
-    cfg = make_config(
-        a.preset,
-        variant=a.variant,
-        epochs=a.epochs,
-        seed=a.seed,
-        num_envs=a.num_envs,
-        threads=a.threads,
-        eval_every=a.eval_every,
-        renderer=a.renderer,
-        physics=a.physics,
-        labels=a.labels,
-        dense_labels=a.dense_labels,
-        aux_fields=a.aux_fields,
-        device=a.device,
-        learner=a.learner,
-        save_replay=a.save_replay,
-        direction_widths=_widths(p, a.direction_widths),
-        direction_net=a.direction_net,
-        freeze_position=True if a.position_from is not None else None,
-    )
+    try:
+        cfg = make_config(
+            a.preset,
+            variant=a.variant,
+            epochs=a.epochs,
+            seed=a.seed,
+            num_envs=a.num_envs,
+            threads=a.threads,
+            eval_every=a.eval_every,
+            renderer=a.renderer,
+            physics=a.physics,
+            labels=a.labels,
+            dense_labels=a.dense_labels,
+            aux_fields=a.aux_fields,
+            device=a.device,
+            learner=a.learner,
+            save_replay=a.save_replay,
+            direction_widths=_widths(p, a.direction_widths),
+            direction_net=a.direction_net,
+            freeze_position=True if a.position_from is not None else None,
+        )
+    except ValueError as e:
+        p.error(str(e))
     return cfg, a
 
 
