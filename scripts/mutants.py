@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -35,48 +36,50 @@ GYM_TESTS = [*PYTEST, "crates/py/tests/test_bindings.py", "crates/py/tests/test_
 TRAINING = [*PYTEST, "train_py/tests/test_runtime_semantics.py", "train_py/tests/test_train.py"]
 CARGO = ["cargo", "test", "--release", "-q"]
 
-# (name, file, original text, mutated text, test command, in the CI subset)
+# (name, file, original text, mutated text, test command, in the CI subset,
+#  the tests written to catch it: the mutant counts as caught only if one of
+#  them is among the failures)
 MUTANTS = [
     ("novel-state threshold δ -> δ/3", "crates/eval/src/protocol.rs",
      "if v - last > DELTA {", "if v - last > DELTA / 3.0 {",
-     [*CARGO, "-p", "umpnet-eval", "--lib", "--test", "metrics"], True),
+     [*CARGO, "-p", "umpnet-eval", "--lib", "--test", "metrics"], True, ("paper_unique_states_counts_greedily_over_sorted_values",)),
     ("AoT class map cls-1 -> 1-cls", "crates/policy/src/policy.rs",
-     "    cls as i8 - 1\n", "    1 - cls as i8\n", [*CARGO, "-p", "umpnet-policy", "--lib"], True),
+     "    cls as i8 - 1\n", "    1 - cls as i8\n", [*CARGO, "-p", "umpnet-policy", "--lib"], True, ("aot_probabilities_are_read_in_the_order_minus_one_zero_plus_one",)),
     ("exploration picks max distance, ignoring AoT", "crates/policy/src/cem.rs",
      "Mode::Explore => best(&|s| s.aot == wanted).or_else(|| best(&|_| true)),",
-     "Mode::Explore => best(&|_| true),", [*CARGO, "-p", "umpnet-policy", "--lib"], True),
+     "Mode::Explore => best(&|_| true),", [*CARGO, "-p", "umpnet-policy", "--lib"], True, ("selection_follows_the_wanted_arrow_of_time_before_distance",)),
     ("RGB read as BGR", "crates/policy/src/observation.rs",
-     "o[3] = rgb[0] as f32", "o[3] = rgb[2] as f32", [*CARGO, "-p", "umpnet-eval", "--test", "observation"], True),
+     "o[3] = rgb[0] as f32", "o[3] = rgb[2] as f32", [*CARGO, "-p", "umpnet-eval", "--test", "observation"], True, ("observation_channels_are_the_frames_world_points_colours_and_depth",)),
     ("goal reward sign", GYM,
      "reward = (np.abs(before - goal) - np.abs(after - goal)) / DELTA",
-     "reward = (np.abs(after - goal) - np.abs(before - goal)) / DELTA", GYM_TESTS, True),
+     "reward = (np.abs(after - goal) - np.abs(before - goal)) / DELTA", GYM_TESTS, True, ("test_gym_rewards_pay_the_oracle_and_not_random[umpnet/Goal-v0]",)),
     ("exploration pays going back", GYM,
      "reward = np.maximum(0.0, distance - farthest) / DELTA",
-     "reward = np.maximum(0.0, farthest - distance) / DELTA", GYM_TESTS, False),
+     "reward = np.maximum(0.0, farthest - distance) / DELTA", GYM_TESTS, False, ("test_gym_rewards_pay_the_oracle_and_not_random[umpnet/Explore-v0]",)),
     ("goal never succeeds", GYM,
      "return reward, reached, farthest",
-     "return reward, reached & False, farthest", GYM_TESTS, False),
+     "return reward, reached & False, farthest", GYM_TESTS, False, ("test_gym_rewards_pay_the_oracle_and_not_random[umpnet/Goal-v0]",)),
     ("exploration ends only at the budget", GYM,
      "return reward, at_limit, np.maximum(farthest, distance)",
-     "return reward, at_limit & False, np.maximum(farthest, distance)", GYM_TESTS, False),
+     "return reward, at_limit & False, np.maximum(farthest, distance)", GYM_TESTS, False, ("test_gym_rewards_pay_the_oracle_and_not_random[umpnet/Explore-v0]",)),
     ("AoT class index reversed in the loss", TRAIN,
      "aot_t = to_long(aot + 1)",
-     "aot_t = to_long(1 - aot)", TRAINING, False),
+     "aot_t = to_long(1 - aot)", TRAINING, False, ("test_training_labels_use_the_class_order_the_runtime_reads",)),
     ("distance loss dropped", TRAIN,
      "total = total + cfg.dist_loss_weight * out[f\"loss/{prefix}dist\"]",
-     "total = total + 0.0 * out[f\"loss/{prefix}dist\"]", TRAINING, False),
+     "total = total + 0.0 * out[f\"loss/{prefix}dist\"]", TRAINING, False, ("test_the_distance_loss_reaches_the_distance_head",)),
     ("dense classes weighted by count, not balanced", TRAIN,
      "return (1.0 / counts.clamp(min=1))[groups] / present",
-     "return counts[groups] / counts.sum()", TRAINING, False),
+     "return counts[groups] / counts.sum()", TRAINING, False, ("test_dense_batches_weigh_each_aot_class_equally",)),
     ("exploration picks backward candidates", COLLECT,
      "k = {1: 2, -1: 0, 0: None}[w]",
-     "k = {1: 0, -1: 2, 0: None}[w]", TRAINING, False),
+     "k = {1: 0, -1: 2, 0: None}[w]", TRAINING, False, ("test_training_explores_with_the_wanted_arrow_of_time",)),
     ("contradictory policy never turns back", COLLECT,
      "return np.where(turn, -1, heading)",
-     "return np.where(turn, 1, heading)", TRAINING, False),
+     "return np.where(turn, 1, heading)", TRAINING, False, ("test_the_contradictory_policy_turns_at_the_boundary_or_half_way_and_stays_back",)),
     ("no random warm-up", COLLECT,
      "    if epoch < start_epoch:\n        return 1.0",
-     "    if epoch < start_epoch:\n        return 0.0", TRAINING, False),
+     "    if epoch < start_epoch:\n        return 0.0", TRAINING, False, ("test_curriculum_and_schedules",)),
 ]  # fmt: skip
 
 
@@ -92,18 +95,36 @@ def mutated_crate_at_opt_level_0(cmd: list[str], rel: str) -> list[str]:
     return [*cmd, "--config", f"profile.release.package.{crate}.opt-level=0"]
 
 
-def run_tests(cmd: list[str], timeout: int) -> tuple[bool, float]:
+def failed_tests(output: str) -> list[str]:
+    """The tests a run reports as failed: pytest's `FAILED path::name` summary
+    lines and cargo's `---- name stdout ----` headers."""
+    names = re.findall(r"^FAILED \S+::(\S+)", output, re.MULTILINE)
+    names += re.findall(r"^---- (\S+) stdout ----", output, re.MULTILINE)
+    return [n.split("::")[-1] for n in names]
+
+
+def run_tests(cmd: list[str], timeout: int) -> tuple[str, list[str], float]:
+    """("passed" | "failed" | "error" | "timeout", the failed tests, seconds).
+    "failed" means at least one test ran and failed; any other non-zero exit
+    (a collection error, a missing binary, a crash before any test) is an
+    "error", which proves nothing about the mutant."""
     env = {**os.environ, "PYTHONPATH": str(ROOT / "train_py")}
     env.setdefault("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
     t0 = time.perf_counter()
     try:
         p = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout, check=False)
-        if "could not compile" in p.stderr or "SyntaxError" in p.stdout + p.stderr:
-            raise RuntimeError(f"the mutant does not build, so it proves nothing: {cmd}")
-        passed = p.returncode == 0
     except subprocess.TimeoutExpired:
-        passed = False  # a hang counts as caught, as cargo-mutants counts timeouts
-    return passed, time.perf_counter() - t0
+        return "timeout", [], time.perf_counter() - t0
+    secs = time.perf_counter() - t0
+    output = p.stdout + p.stderr
+    if "could not compile" in p.stderr or "SyntaxError" in output:
+        raise RuntimeError(f"the mutant does not build, so it proves nothing: {cmd}")
+    if p.returncode == 0:
+        return "passed", [], secs
+    failed = failed_tests(output)
+    if not failed or re.search(r"^ERROR ", output, re.MULTILINE):
+        return "error", failed, secs
+    return "failed", failed, secs
 
 
 def main(argv=None) -> int:
@@ -113,28 +134,45 @@ def main(argv=None) -> int:
     ap.add_argument("-k", dest="match", default="", help="only the mutants whose name contains this text")
     ap.add_argument("--timeout", type=int, default=900, help="seconds per mutant's test run")
     args = ap.parse_args(argv)
+    chosen = [m for m in MUTANTS if (m[5] or not args.ci) and args.match in m[0]]
+    for name, rel, old, *_ in chosen:
+        count = (ROOT / rel).read_text().count(old)
+        if count != 1:
+            print(f"error: mutant `{name}`: the original text occurs {count} times in {rel}")
+            return 2
+    # A green baseline first: each command, as the mutants will run it, on the
+    # unmutated source. A command that fails there would "catch" every mutant.
+    commands = {tuple(mutated_crate_at_opt_level_0(m[4], m[1])) for m in chosen}
+    for cmd in sorted(commands):
+        outcome, failed, secs = run_tests(list(cmd), args.timeout)
+        if outcome != "passed":
+            print(f"error: the unmutated source does not pass ({outcome}: {failed}): {' '.join(cmd)}")
+            return 2
+        if not args.json:
+            print(f"green    {' '.join(cmd[-4:])} ({secs:.0f} s)", flush=True)
     results = []
-    for name, rel, old, new, cmd, in_ci in MUTANTS:
-        if (args.ci and not in_ci) or args.match not in name:
-            continue
+    for name, rel, old, new, cmd, _, expect in chosen:
         path = ROOT / rel
         original = path.read_text()
-        if original.count(old) != 1:
-            print(f"error: mutant `{name}`: the original text occurs {original.count(old)} times in {rel}")
-            return 2
         try:
             path.write_text(original.replace(old, new))
-            passed, secs = run_tests(mutated_crate_at_opt_level_0(cmd, rel), args.timeout)
+            outcome, failed, secs = run_tests(mutated_crate_at_opt_level_0(cmd, rel), args.timeout)
         finally:
             path.write_text(original)
-        results.append({"mutant": name, "file": rel, "caught": not passed, "seconds": round(secs, 1)})
+        # Caught only when the test written for this mutant is among those failing.
+        caught = outcome == "failed" and any(e == f for e in expect for f in failed)
+        results.append(
+            {"mutant": name, "file": rel, "outcome": outcome, "failed_tests": failed, "expected": list(expect),
+             "caught": caught, "seconds": round(secs, 1)}
+        )  # fmt: skip
         if not args.json:
-            print(f"{'caught ' if not passed else 'MISSED '} {name} ({rel}, {secs:.0f} s)", flush=True)
+            why = "" if caught else f" [{outcome}; failed {failed or 'nothing'}, expected one of {list(expect)}]"
+            print(f"{'caught ' if caught else 'MISSED '} {name} ({rel}, {secs:.0f} s){why}", flush=True)
     missed = [r for r in results if not r["caught"]]
     if args.json:
         print(json.dumps({"mutants": results, "caught": len(results) - len(missed), "missed": len(missed)}))
     else:
-        print(f"{len(results) - len(missed)} of {len(results)} mutants caught")
+        print(f"{len(results) - len(missed)} of {len(results)} mutants caught by their tests")
     return 1 if missed else 0
 
 
