@@ -97,6 +97,19 @@ pub fn first_round(rng: &mut impl Rng, banned: &[Vector3<f32>]) -> Vec<Vector3<f
     if kept.is_empty() { all } else { kept }
 }
 
+/// The index whose share of the weights' running sum holds `u` (drawn in
+/// `[0, total)`). Rounding can make `u` reach the sum of the weights before
+/// the last one is passed; the walk then stops at the last index instead of
+/// running off the end.
+pub fn roulette(weights: &[f32], mut u: f32) -> usize {
+    let mut k = 0;
+    while k + 1 < weights.len() && u >= weights[k] {
+        u -= weights[k];
+        k += 1;
+    }
+    k
+}
+
 /// The second round: resampled around the good ones of the first.
 pub fn second_round(
     rng: &mut impl Rng,
@@ -116,12 +129,10 @@ pub fn second_round(
     let mut tries = 0;
     while out.len() < CANDIDATES && tries < CANDIDATES * 20 {
         tries += 1;
-        let mut u = rng.random_range(0.0..total.max(f32::MIN_POSITIVE));
-        let mut k = 0;
-        while k + 1 < weights.len() && u >= weights[k] {
-            u -= weights[k];
-            k += 1;
-        }
+        let k = roulette(
+            &weights,
+            rng.random_range(0.0..total.max(f32::MIN_POSITIVE)),
+        );
         let noise = Vector3::new(
             rng.sample::<f32, _>(StandardNormal),
             rng.sample(StandardNormal),
@@ -180,6 +191,21 @@ pub fn cem(
 mod tests {
     use super::*;
     use rand::SeedableRng;
+
+    #[test]
+    fn roulette_picks_the_share_that_holds_u_and_stops_at_the_last_index() {
+        let w = [0.25f32, 0.5, 0.25];
+        assert_eq!(roulette(&w, 0.0), 0);
+        assert_eq!(roulette(&w, 0.2499), 0);
+        assert_eq!(roulette(&w, 0.25), 1);
+        assert_eq!(roulette(&w, 0.7499), 1);
+        assert_eq!(roulette(&w, 0.75), 2);
+        // u at or past the whole sum (rounding in the draw or the sum): the last
+        // index, never one past it.
+        assert_eq!(roulette(&w, 1.0), 2);
+        assert_eq!(roulette(&w, 1.5), 2);
+        assert_eq!(roulette(&[1.0], 3.0), 0);
+    }
 
     fn peak(target: Vector3<f32>) -> impl FnMut(&[Vector3<f32>]) -> Vec<Score> {
         move |ds: &[Vector3<f32>]| {

@@ -147,8 +147,9 @@ impl UmpnetPolicy {
             }
             obs.index_axis_mut(Axis(0), i).assign(&inp.observation);
             refs.index_axis_mut(Axis(0), i).assign(&inp.reference);
-            pix[[i, 0]] = inp.pixel.0.min(h - 1) as i64;
-            pix[[i, 1]] = inp.pixel.1.min(w - 1) as i64;
+            let (r, c) = on_image(inp.pixel, (h, w));
+            pix[[i, 0]] = r as i64;
+            pix[[i, 1]] = c as i64;
         }
         let (de, ae) = self.package.encode(obs.view(), refs.view(), pix.view())?;
         if self.package.branches == Branches::Inverse {
@@ -219,7 +220,7 @@ impl UmpnetPolicy {
         }
         let (h, w) = self.resolution();
         for (i, inp) in inputs.iter().enumerate() {
-            let (r, c) = (inp.pixel.0.min(h - 1), inp.pixel.1.min(w - 1));
+            let (r, c) = on_image(inp.pixel, (h, w));
             let n = Vector3::new(
                 inp.observation[[r, c, 6]],
                 inp.observation[[r, c, 7]],
@@ -282,9 +283,29 @@ fn most_likely_aot(p: ndarray::ArrayView1<f32>) -> i8 {
     cls as i8 - 1
 }
 
+/// The grasp pixel clamped onto an image of `(h, w)`: a gripper given past
+/// the edge is read at the nearest pixel. The encoders of packages made by
+/// this project clamp again, but a package made elsewhere need not, so the
+/// runtime never hands an encoder a pixel outside its image.
+fn on_image(pixel: (usize, usize), (h, w): (usize, usize)) -> (usize, usize) {
+    (
+        pixel.0.min(h.saturating_sub(1)),
+        pixel.1.min(w.saturating_sub(1)),
+    )
+}
+
 #[cfg(test)]
 mod tests {
-    use super::most_likely_aot;
+    use super::{most_likely_aot, on_image};
+
+    #[test]
+    fn a_grasp_pixel_past_the_image_is_read_at_the_nearest_edge_pixel() {
+        assert_eq!(on_image((0, 0), (96, 128)), (0, 0));
+        assert_eq!(on_image((95, 127), (96, 128)), (95, 127));
+        assert_eq!(on_image((96, 128), (96, 128)), (95, 127));
+        assert_eq!(on_image((500, 3), (96, 128)), (95, 3));
+        assert_eq!(on_image((7, usize::MAX), (96, 128)), (7, 127));
+    }
 
     #[test]
     fn aot_probabilities_are_read_in_the_order_minus_one_zero_plus_one() {

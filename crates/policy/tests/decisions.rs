@@ -395,3 +395,23 @@ fn decision_inputs_that_do_not_fit_are_errors() {
         .unwrap();
     assert_ne!(edge[0].scores, inside[0].scores);
 }
+
+#[test]
+fn the_normal90_filter_bans_nothing_where_the_grasp_has_no_normal() {
+    let Some(policy) = policy("steer-normal90") else {
+        return;
+    };
+    let mut obs = observation(&policy, 6);
+    // A pixel with no surface normal (zero, as the observation gives where
+    // normals cannot be estimated): no direction pushes into a surface there.
+    for k in 0..3 {
+        obs[[3, 4, 6 + k]] = 0.0;
+    }
+    let r = decide_at(&policy, &[obs], &[Mode::Explore], &[], 9, (3, 4)).remove(0);
+    for (d, s) in r.candidates.iter().zip(&r.scores) {
+        assert!(
+            (s.distance - (0.3 - 0.2 * d.x)).abs() < 1e-4,
+            "{d:?}: {s:?}"
+        );
+    }
+}

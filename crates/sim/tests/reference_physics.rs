@@ -243,3 +243,62 @@ fn only_the_five_joints_nearest_the_grasp_carry_the_load() {
         "the fifth joint from the grasp carried no load: {q:?}"
     );
 }
+
+/// A hinge whose link has its mass on the axis and no rotational inertia: the
+/// loader accepts it, and its row of the chain's mass matrix is zero but for
+/// the solver's guard. PyBullet (measured with tests/reference/pybullet_sim.py)
+/// leaves such a door where it is under a pull, and on a chain it all but
+/// stalls the parent hinge too (0.0029 rad for a full pull): so does umpnet.
+#[test]
+fn a_hinge_with_no_inertia_about_its_axis_stays_put_as_in_pybullet() {
+    let urdf = CABINET.replace(
+        r#"<inertial><origin xyz="0.4 -0.01 0"/><mass value="2"/><inertia ixx="0.14" ixy="0" ixz="0" iyy="0.24" iyz="0" izz="0.11"/></inertial>"#,
+        r#"<inertial><origin xyz="0 0 0"/><mass value="1"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>"#,
+    );
+    assert_ne!(urdf, CABINET);
+    let m = Arc::new(parse_urdf(&urdf, std::path::Path::new("cabinet.urdf")).unwrap());
+    let mut art = Articulation::new(
+        m.clone(),
+        Pose3::from_translation(Vec3::new(0.0, -0.5, 0.0)),
+        PhysicsConfig::with_profile(PhysicsProfile::Reference),
+    );
+    let j = joint(&m, "door_hinge");
+    art.attach(Vec3::new(0.3, -0.76, 0.75), link(&m, "door"))
+        .unwrap();
+    for d in [
+        Vec3::new(0.0, -1.0, 0.0),
+        Vec3::new(0.5, -1.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+    ] {
+        let o = art.move_gripper(d.normalize(), j).unwrap();
+        assert!(
+            o.joint_after.is_finite() && o.joint_after.abs() < 1e-6,
+            "{o:?}"
+        );
+    }
+    // Two links: the second with its mass on its own axis and no inertia.
+    let urdf = r#"<?xml version="1.0"?><robot name="arm"><link name="l0"/>
+      <link name="l1"><inertial><origin xyz="0.1 0 0"/><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial><visual><origin xyz="0.1 0 0"/><geometry><box size="0.2 0.04 0.04"/></geometry></visual></link>
+      <joint name="j1" type="revolute"><parent link="l0"/><child link="l1"/><origin xyz="0 0 0"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="100" velocity="1"/></joint>
+      <link name="l2"><inertial><origin xyz="0 0 0"/><mass value="1"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial><visual><origin xyz="0.1 0 0"/><geometry><box size="0.2 0.04 0.04"/></geometry></visual></link>
+      <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.2 0 0"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="100" velocity="1"/></joint>
+      </robot>"#;
+    let m = Arc::new(parse_urdf(urdf, std::path::Path::new("arm.urdf")).unwrap());
+    let mut art = Articulation::new(
+        m.clone(),
+        Pose3::IDENTITY,
+        PhysicsConfig::with_profile(PhysicsProfile::Reference),
+    );
+    art.attach(Vec3::new(0.15, 0.02, 0.0), link(&m, "l1"))
+        .unwrap();
+    let o = art
+        .move_gripper(Vec3::new(0.0, 1.0, 0.0), joint(&m, "j1"))
+        .unwrap();
+    let q = art.joint_positions();
+    assert!(q.iter().all(|v| v.is_finite()), "{q:?}");
+    // PyBullet: 0.0029 rad after the pull, the child at 0 (measured as above).
+    assert!(
+        o.joint_after > 0.0 && o.joint_after < 0.006 && q[1].abs() < 1e-6,
+        "{o:?} {q:?}"
+    );
+}
