@@ -64,11 +64,52 @@ impl std::str::FromStr for Category {
             .ok_or_else(|| {
                 let names: Vec<&str> = Category::ALL.iter().map(|c| c.name()).collect();
                 SimError::Other(format!(
-                    "unknown category `{s}`; expected one of {}",
+                    "unknown category `{s}`{}; expected one of {}",
+                    category_hint(&key),
                     names.join(", ")
                 ))
             })
     }
+}
+
+/// Parts people ask for by name, and the categories that have them.
+const PART_HINTS: &[(&str, &str)] = &[
+    ("drawer", "StorageFurniture (drawers and cabinets)"),
+    ("cabinet", "StorageFurniture (drawers and cabinets)"),
+    ("cupboard", "StorageFurniture (drawers and cabinets)"),
+    ("wardrobe", "StorageFurniture (drawers and cabinets)"),
+    ("lid", "Box, Kettle, KitchenPot, TrashCan or Toilet (lids)"),
+];
+
+/// "(did you mean `X`?)" for a near miss of a name (at most a third of its
+/// letters wrong) or a part that lives in a category; empty otherwise.
+fn category_hint(key: &str) -> String {
+    if let Some((_, category)) = PART_HINTS.iter().find(|(part, _)| key.contains(part)) {
+        return format!(" (did you mean {category}?)");
+    }
+    let best = Category::ALL
+        .iter()
+        .map(|c| (edit_distance(key, &c.name().to_ascii_lowercase()), c.name()))
+        .min();
+    match best {
+        Some((d, name)) if d * 3 <= name.len().max(3) => format!(" (did you mean {name}?)"),
+        _ => String::new(),
+    }
+}
+
+/// Levenshtein distance over bytes (category names are ASCII).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.bytes().enumerate() {
+        let mut cur = Vec::with_capacity(prev.len());
+        cur.push(i + 1);
+        for ((cb, &diagonal), &up) in b.bytes().zip(&prev).zip(prev.iter().skip(1)) {
+            let left = cur.last().copied().unwrap_or(0);
+            cur.push((diagonal + usize::from(ca != cb)).min(up + 1).min(left + 1));
+        }
+        prev = cur;
+    }
+    prev.last().copied().unwrap_or(0)
 }
 
 /// Instance split: training categories have train and test instances; test
@@ -236,4 +277,30 @@ pub fn write_dataset(
     let text = serde_json::to_string_pretty(&value).map_err(|e| SimError::Other(e.to_string()))?;
     crate::fsio::write_atomic(&path, text.as_bytes())?;
     Ok(value)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn refusal(name: &str) -> String {
+        match name.parse::<Category>() {
+            Ok(c) => panic!("{name} parsed as {c}"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn an_unknown_category_suggests_the_nearest_name_or_the_category_of_a_part() {
+        assert!(refusal("Microwav").contains("(did you mean Microwave?)"));
+        assert!(refusal("washing_machne").contains("(did you mean WashingMachine?)"));
+        assert!(refusal("drawer").contains("(did you mean StorageFurniture"));
+        assert!(refusal("kitchen cabinet").contains("StorageFurniture"));
+        assert!(refusal("pot lid").contains("KitchenPot"));
+        let far = refusal("Spaceship");
+        assert!(!far.contains("did you mean") && far.contains("expected one of Refrigerator"));
+        assert_eq!("fridge".parse::<Category>().ok(), Some(Category::Refrigerator));
+        assert_eq!(edit_distance("", "abc"), 3);
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+    }
 }
