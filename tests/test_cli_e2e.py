@@ -145,6 +145,7 @@ def test_output_folders_are_claimed_never_overwritten_silently(tmp_path):
     [
         (["explore"], 2, "--category"),
         (["explore", "--category", "Spaceship"], 2, "unknown category"),
+        (["explore", "--category", "drawer"], 2, "did you mean StorageFurniture"),
         (["eval", "--split", "nope"], 2, "--split nope"),
         (["render", "--category", "Door", "--resolution", "12", "--out", "/tmp/x"], 2, "HEIGHTxWIDTH"),
         (["explore", "--object", "/nonexistent/mobility.urdf"], 2, "no such file"),
@@ -155,6 +156,13 @@ def test_bad_usage_exits_2_with_one_line(args, code, needle):
     p = run(*args, check=False)
     assert p.returncode == code, p.stderr
     assert needle in p.stderr
+
+
+def test_a_portrait_resolution_is_rendered_as_asked_with_a_warning(tmp_path):
+    p = run("render", "--category", "Door", "--resolution", "64x48", "--out", str(tmp_path))
+    assert "64 rows by 48 columns" in p.stderr and "did you mean 48x64" in p.stderr, p.stderr
+    camera = json.loads((tmp_path / "camera.json").read_text())
+    assert (camera["height"], camera["width"]) == (64, 48)
 
 
 def test_broken_object_file_exits_1_naming_the_file(tmp_path):

@@ -36,7 +36,8 @@ pub struct EpisodeArgs {
     /// Model package for --policy umpnet (default: models/umpnet-small).
     #[arg(long)]
     pub model: Option<PathBuf>,
-    /// Image size; a learned policy uses its model's.
+    /// Image size as HEIGHTxWIDTH (rows x columns); a learned policy uses its
+    /// model's.
     #[arg(long, default_value = "240x320", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
     #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]

@@ -124,7 +124,16 @@ pub fn parse_resolution(s: &str) -> std::result::Result<(u32, u32), String> {
             .filter(|v| (8..=4096).contains(v))
     };
     match (p(h), p(w)) {
-        (Some(h), Some(w)) => Ok((h, w)),
+        (Some(h), Some(w)) => {
+            if w < h {
+                // Cameras are wider than tall; 640x480 here is a portrait image.
+                eprintln!(
+                    "warning: resolution `{s}` is HEIGHTxWIDTH: {h} rows by {w} columns, \
+                     taller than wide (did you mean {w}x{h}?)"
+                );
+            }
+            Ok((h, w))
+        }
         _ => Err(format!(
             "`{s}`: height and width must be integers in 8..=4096"
         )),

@@ -8,6 +8,7 @@ use umpnet_sim::render::{RendererKind, create_renderer};
 pub struct RenderArgs {
     #[command(flatten)]
     pub object: crate::ObjectArgs,
+    /// Image size as HEIGHTxWIDTH (rows x columns), e.g. 480x640.
     #[arg(long, default_value = "480x640", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
     #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]

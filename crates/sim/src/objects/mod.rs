@@ -299,7 +299,10 @@ mod tests {
         assert!(refusal("pot lid").contains("KitchenPot"));
         let far = refusal("Spaceship");
         assert!(!far.contains("did you mean") && far.contains("expected one of Refrigerator"));
-        assert_eq!("fridge".parse::<Category>().ok(), Some(Category::Refrigerator));
+        assert_eq!(
+            "fridge".parse::<Category>().ok(),
+            Some(Category::Refrigerator)
+        );
         assert_eq!(edit_distance("", "abc"), 3);
         assert_eq!(edit_distance("kitten", "sitting"), 3);
     }
