@@ -23,8 +23,9 @@ the same machine load. Wall milliseconds, min / median:
 - render agreement: umpnet's wgpu segmentation against its CPU renderer's,
   over the object's pixels.
 
-The targets of the throughput issue are checked at the end. Run it on a
-quiet machine: the ratios mean nothing beside a training run.
+The targets of the throughput issue are reported at the end (met or missed);
+with `--check` a missed target makes the exit status 1. Run it on a quiet
+machine: the ratios mean nothing beside a training run.
 """
 
 from __future__ import annotations
@@ -244,6 +245,7 @@ def main():
     p.add_argument("--repeats", type=int, default=15)
     p.add_argument("--sizes", default="1,2,4,8", help="VecEnv sizes")
     p.add_argument("--json", action="store_true")
+    p.add_argument("--check", action="store_true", help="exit 1 when a target is missed (default: report only)")
     a = p.parse_args()
     with tempfile.TemporaryDirectory(prefix="umpnet-compare-") as folder:
         return compare(Path(folder), a)
@@ -275,7 +277,7 @@ def compare(folder: Path, a: argparse.Namespace) -> int:
         print(json.dumps(result, indent=1))
     else:
         print(report(result))
-    return 0 if all(t["met"] for t in result["targets"]) else 1
+    return 1 if a.check and not all(t["met"] for t in result["targets"]) else 0
 
 
 def targets(r):
