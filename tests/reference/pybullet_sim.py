@@ -1,5 +1,6 @@
-"""The paper's simulator, re-implemented in PyBullet from the facts in
-shared/DESIGN.md ("The paper's released code"), as the reference of the
+"""The paper's simulator, re-implemented in PyBullet after the released code
+(`sim.py` of real-stanford/umpnet: a force-limited 3-axis mount, a
+point-to-point suction constraint, 240 Hz), as the reference of the
 differential suite. It models only what the action primitive needs: the
 object, the force-limited 3-axis mount, the point-to-point suction and the
 0.18 m move with its stopping rule. No rendering.
