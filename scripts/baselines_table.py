@@ -1,4 +1,4 @@
-"""The README's baselines table from `make eval-baselines`' results.
+"""docs/training.md's baselines table from `make eval-baselines`' results.
 
     .venv/bin/python scripts/baselines_table.py [--split test] [--json]
 
