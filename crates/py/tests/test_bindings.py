@@ -529,3 +529,27 @@ def test_goal_displacement_moves_only_the_goal_part_and_stacks_in_vecenv():
     stacked = vec.articulation_fields()
     assert stacked["flow"].shape == (2, *RES, 3) and stacked["goal_displacement"].shape == (2, *RES, 3)
     assert stacked["movable"].dtype == bool and stacked["joint"].dtype == np.int32
+
+
+def test_a_gym_observation_carries_the_gripper_pixel_the_shipped_policy_needs():
+    import gymnasium as gym
+
+    shipped = str(Path(__file__).resolve().parents[3] / "models" / "umpnet-small")
+    policy = umpnet.Policy(shipped, seed=0)
+    env = gym.make("umpnet/Goal-v0", resolution=policy.resolution, category=["Door"])
+    obs, _ = env.reset(seed=1)
+    assert tuple(obs["gripper_pixel"]) == (-1, -1) and env.observation_space.contains(obs)
+    row, col = policy.position(obs["image"], obs["reference"])
+    grasp = {"phase": 0, "pixel": np.array([row, col]), "direction": np.zeros(3, np.float32)}
+    obs, _, terminated, _, info = env.step(grasp)
+    assert info["valid"] and not terminated, info
+    # The gripper is where the policy grasped (the suction point, projected back).
+    assert np.abs(obs["gripper_pixel"] - [row, col]).max() <= 2, (obs["gripper_pixel"], (row, col))
+    np.testing.assert_array_equal(obs["gripper_pixel"], env.unwrapped._obs["gripper_pixel"])
+    assert env.observation_space.contains(obs)
+    # With it, the policy's direction comes from public observation fields alone.
+    decision = policy.direction_batch(
+        obs["image"][None], obs["reference"][None], obs["gripper_pixel"][None], mode="goal"
+    )[0]
+    obs, *_ = env.step({"phase": 1, "pixel": np.zeros(2, np.int64), "direction": np.asarray(decision["direction"])})
+    assert env.observation_space.contains(obs)

@@ -3,7 +3,11 @@
 The action is two-phase, as in the paper: the first step takes a pixel
 (``{"phase": 0, "pixel": [row, col]}``), later steps a direction
 (``{"phase": 1, "direction": [x, y, z]}``). The observation holds the
-10-channel image, the reference image and the phase.
+10-channel image, the reference image, the phase and ``gripper_pixel``
+(where the gripper holds the object, (-1, -1) before the grasp): what
+``umpnet.Policy`` needs, so a learned policy is driven from the observation
+alone (``Policy.position(obs["image"], obs["reference"])``, then
+``Policy.direction_batch`` with ``obs["gripper_pixel"]``).
 
 Rewards and ends follow the paper's protocol (docs/physics-and-protocol.md),
 in units of delta (0.15 rad or m):
@@ -83,7 +87,12 @@ class UmpnetEnv(gym.Env):
     def spaces(h, w):
         """(observation space, action space) of one environment at h x w."""
         image = spaces.Box(-np.inf, np.inf, shape=(h, w, 10), dtype=np.float32)
-        observation = spaces.Dict({"image": image, "reference": image, "phase": spaces.Discrete(2)})
+        # Where the gripper holds the object, in the image ((-1, -1) before the
+        # grasp): the learned policy's direction networks read the image there.
+        gripper = spaces.Box(np.array([-1, -1]), np.array([h - 1, w - 1]), shape=(2,), dtype=np.int64)
+        observation = spaces.Dict(
+            {"image": image, "reference": image, "phase": spaces.Discrete(2), "gripper_pixel": gripper}
+        )
         action = spaces.Dict(
             {
                 "phase": spaces.Discrete(2),
@@ -94,7 +103,12 @@ class UmpnetEnv(gym.Env):
         return observation, action
 
     def _observation(self, obs):
-        return {"image": obs["image"], "reference": obs["reference"], "phase": self._phase}
+        return {
+            "image": obs["image"],
+            "reference": obs["reference"],
+            "phase": self._phase,
+            "gripper_pixel": np.asarray(obs["gripper_pixel"], np.int64).copy(),
+        }
 
     def _budget(self):
         if self.max_steps is not None:
@@ -211,7 +225,12 @@ class UmpnetVectorEnv(VectorEnv):
         self._limits, self._threshold, self._goal = np.zeros((n, 2)), np.zeros(n), np.zeros(n)
 
     def _observation(self, obs):
-        return {"image": obs["image"], "reference": obs["reference"], "phase": self._phase.copy()}
+        return {
+            "image": obs["image"],
+            "reference": obs["reference"],
+            "phase": self._phase.copy(),
+            "gripper_pixel": np.asarray(obs["gripper_pixel"], np.int64).copy(),
+        }
 
     def reset(self, *, seed=None, options=None):
         if seed is not None:
