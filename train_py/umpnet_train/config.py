@@ -20,8 +20,8 @@ class Config:
     direction_net: str = "context"
     decoder_hidden: int = 1024  # width of the decoder MLPs (the paper's appendix)
     variant: str = "umpnet"  # umpnet | single-step | aot-only | signed-dist | where2act | inverse
-    # Data collection (paper: 64 environments, 6400-sample FIFO replay buffer)
-    num_envs: int = 64
+    # Data collection (the released code: 16 environments, 6400-sample FIFO replay buffer)
+    num_envs: int = 16
     replay_size: int = 6400
     categories: list[str] = field(default_factory=list)  # empty: the 12 training categories
     physics: str = "reference"  # the paper's simulator; "ideal": every pull follows the joint's path
