@@ -1,6 +1,6 @@
 //! What one executed direction is labelled with. Two definitions live here,
 //! on purpose side by side:
-//! - [`labels`]: the paper's text (DESIGN.md), with δ as the threshold. The
+//! - [`labels`]: the paper's task definition, with δ as the threshold. The
 //!   evaluation metrics and the scripted policies read these.
 //! - [`train_labels`]: what the paper's released training code records
 //!   (sim.py `get_reward` / `get_init_boundary`): thresholds of 0.1 rad or

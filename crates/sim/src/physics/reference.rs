@@ -2,7 +2,8 @@
 //! real-stanford/umpnet `sim.py`) re-derived as a small velocity-level
 //! solver in reduced coordinates, so that it is both faithful and fast.
 //!
-//! What it models, as the reference does (facts in DESIGN.md):
+//! What it models, as the reference does (checked against PyBullet by
+//! `tests/reference` and `tests/pybullet_golden.rs`):
 //! - The gripper is a mount of mass ~100 kg on three world-aligned prismatic
 //!   axes, each a velocity motor whose target is `gain * error / dt`
 //!   (PyBullet's POSITION_CONTROL) with at most 1500 N.
