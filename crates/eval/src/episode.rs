@@ -60,6 +60,49 @@ pub struct Metrics {
     pub normalized_distance_curve: Vec<f32>,
     pub normalized_distance: f32,
     pub success: bool,
+    /// Exploration: the grasped joint's axis inferred from the moving steps
+    /// (the paper's structure inference), against the true axis. None when
+    /// fewer than two steps moved the part.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<AxisError>,
+}
+
+/// How far the axis inferred from an episode's actions is from the truth.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AxisError {
+    /// The true joint is prismatic (the paper reports the two kinds apart).
+    pub prismatic: bool,
+    /// The inference took the moves for a prismatic joint's.
+    pub inferred_prismatic: bool,
+    /// Angle between the inferred and the true axis, ignoring sign, in
+    /// degrees: 0 to 90. A revolute joint taken for a prismatic one has
+    /// its motion direction as axis, about 90 degrees off.
+    pub degrees: f32,
+}
+
+/// The paper's joint-axis inference over the steps that moved the part,
+/// against `true_axis`.
+pub fn axis_error(steps: &[Step], prismatic: bool, true_axis: [f32; 3]) -> Option<AxisError> {
+    use nalgebra::Vector3;
+    use umpnet_policy::axis::{JointEstimate, axis_angle_deg, infer_joint};
+    let moved = steps.iter().filter(|s| s.record.labels.moved);
+    let (directions, points): (Vec<_>, Vec<_>) = moved
+        .map(|s| {
+            (
+                Vector3::from(s.record.direction),
+                Vector3::from(s.gripper_in_world),
+            )
+        })
+        .unzip();
+    let (inferred_prismatic, axis) = match infer_joint(&directions, &points)? {
+        JointEstimate::Prismatic { axis } => (true, axis),
+        JointEstimate::Revolute { axis, .. } => (false, axis),
+    };
+    Some(AxisError {
+        prismatic,
+        inferred_prismatic,
+        degrees: axis_angle_deg(&Vector3::from(axis), &Vector3::from(true_axis)),
+    })
 }
 
 /// What a hook sees after each action: the frame, the step that led to it
@@ -338,5 +381,11 @@ fn metrics(
         .iter()
         .map(|s| (s.record.labels.joint_after, s.record.labels.r_dist))
         .collect();
-    score(what, &records, budget, protocol, ended_by_protocol)
+    let mut m = score(what, &records, budget, protocol, ended_by_protocol);
+    if let (Task::Exploration, Some(j)) = (scene.task, joint) {
+        let (true_axis, _) = env.articulation().joint_axis_in_world(j);
+        let prismatic = env.model().joints[j].kind.is_prismatic();
+        m.axis = axis_error(steps, prismatic, true_axis.to_array());
+    }
+    m
 }

@@ -174,3 +174,78 @@ fn missing_the_part_scores_worst() {
     assert_eq!(m.normalized_distance_curve, [1.0; 3]);
     assert!(m.normalized_distance == 1.0 && !m.success);
 }
+
+fn step(direction: [f32; 3], at: [f32; 3], moved: bool) -> umpnet_eval::episode::Step {
+    umpnet_eval::episode::Step {
+        record: umpnet_eval::policy::StepRecord {
+            direction,
+            labels: umpnet_sim::labels::StepLabels {
+                joint_before: 0.0,
+                joint_after: 0.0,
+                r_dist: 0.0,
+                aot: 0,
+                moved,
+                reached_limit: false,
+                back_at_start: false,
+                suction_lost: false,
+                train: Default::default(),
+            },
+        },
+        gripper_in_world: at,
+        candidates: None,
+    }
+}
+
+/// A handle on a door hinged on the world z axis, 0.5 m out, pulled along the
+/// tangent of its arc at angles 0, 0.3, 0.6 and 0.9 rad.
+fn door_steps() -> Vec<umpnet_eval::episode::Step> {
+    [0.0f32, 0.3, 0.6, 0.9]
+        .iter()
+        .map(|a| {
+            step(
+                [-a.sin(), a.cos(), 0.0],
+                [0.5 * a.cos(), 0.5 * a.sin(), 0.4],
+                true,
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn the_axis_inferred_from_a_doors_arc_is_its_hinge_and_a_slide_is_its_own_axis() {
+    use umpnet_eval::episode::axis_error;
+    let door = axis_error(&door_steps(), false, [0.0, 0.0, -1.0]).unwrap();
+    assert!(!door.prismatic && !door.inferred_prismatic, "{door:?}");
+    assert!(door.degrees < 1.0, "{door:?}");
+    // The same moves judged against a wrong axis: the error is the angle to it.
+    let tilted = axis_error(&door_steps(), false, [0.0, 1.0, 1.0]).unwrap();
+    assert!((tilted.degrees - 45.0).abs() < 1.0, "{tilted:?}");
+
+    let slide: Vec<_> = (0..3)
+        .map(|k| step([0.0, 0.0, 1.0], [0.1, 0.2, 0.3 + 0.1 * k as f32], true))
+        .collect();
+    let drawer = axis_error(&slide, true, [0.0, 0.0, 1.0]).unwrap();
+    assert!(drawer.prismatic && drawer.inferred_prismatic, "{drawer:?}");
+    assert!(drawer.degrees < 1e-3, "{drawer:?}");
+    // A door's pulls taken as a slide would point across its hinge.
+    let wrong = axis_error(&slide, false, [1.0, 0.0, 0.0]).unwrap();
+    assert!(wrong.inferred_prismatic && (wrong.degrees - 90.0).abs() < 1e-3);
+}
+
+#[test]
+fn the_axis_is_inferred_only_from_steps_that_moved_the_part() {
+    use umpnet_eval::episode::axis_error;
+    let mut steps = door_steps();
+    // Pushes that moved nothing say nothing about the joint.
+    steps.insert(1, step([1.0, 0.0, 0.0], [0.0, 0.0, 0.0], false));
+    steps.push(step([0.0, 0.0, 1.0], [0.3, 0.3, 0.0], false));
+    let with = axis_error(&steps, false, [0.0, 0.0, 1.0]).unwrap();
+    let without = axis_error(&door_steps(), false, [0.0, 0.0, 1.0]).unwrap();
+    assert_eq!(with, without);
+    // One move is not enough to tell an axis.
+    let one = [
+        door_steps()[0].clone(),
+        step([1.0, 0.0, 0.0], [0.0; 3], false),
+    ];
+    assert_eq!(axis_error(&one, false, [0.0, 0.0, 1.0]), None);
+}

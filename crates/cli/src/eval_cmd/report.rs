@@ -118,6 +118,8 @@ fn value(m: &Metrics, metric: &str) -> Option<f64> {
         "single_action_effect" => m.single_action_effect as f64,
         "normalized_distance" => m.normalized_distance as f64,
         "success_rate" => m.success as u8 as f64,
+        "revolute_axis_error" => f64::from(m.axis.filter(|a| !a.prismatic)?.degrees),
+        "prismatic_axis_error" => f64::from(m.axis.filter(|a| a.prismatic)?.degrees),
         _ => return None,
     })
 }

@@ -44,6 +44,16 @@ pub fn metrics_of(task: Task) -> &'static [(&'static str, &'static str)] {
                 "single_action_effect",
                 "single action effect (higher is better)",
             ),
+            // The paper's structure inference: episodes with two or more
+            // moving steps, by the grasped joint's kind.
+            (
+                "revolute_axis_error",
+                "joint-axis error on revolute joints, degrees (lower is better)",
+            ),
+            (
+                "prismatic_axis_error",
+                "joint-axis error on prismatic joints, degrees (lower is better)",
+            ),
         ],
         Task::Goal => &[
             (
