@@ -140,22 +140,36 @@ def test_output_folders_are_claimed_never_overwritten_silently(tmp_path):
     assert p.returncode == 1 and "file/objs: cannot create" in p.stderr, p.stderr
 
 
-@pytest.mark.parametrize(
-    "args, code, needle",
-    [
-        (["explore"], 2, "--category"),
-        (["explore", "--category", "Spaceship"], 2, "unknown category"),
-        (["explore", "--category", "drawer"], 2, "did you mean StorageFurniture"),
-        (["eval", "--split", "nope"], 2, "--split nope"),
-        (["render", "--category", "Door", "--resolution", "12", "--out", "/tmp/x"], 2, "HEIGHTxWIDTH"),
-        (["explore", "--object", "/nonexistent/mobility.urdf"], 2, "no such file"),
-        (["eval", "--threads", "5000"], 2, "5000 is not in 1..=1024"),
-    ],
-)
+BAD_USAGE = [
+    (["explore"], 2, "--category"),
+    (["explore", "--category", "Spaceship"], 2, "unknown category"),
+    (["explore", "--category", "drawer"], 2, "did you mean StorageFurniture"),
+    (["eval", "--split", "nope"], 2, "--split nope"),
+    (["render", "--category", "Door", "--resolution", "12", "--out", "/tmp/x"], 2, "HEIGHTxWIDTH"),
+    (["explore", "--object", "/nonexistent/mobility.urdf"], 2, "no such file"),
+    (["eval", "--threads", "5000"], 2, "5000 is not in 1..=1024"),
+]
+
+
+@pytest.mark.parametrize("args, code, needle", BAD_USAGE)
 def test_bad_usage_exits_2_with_one_line(args, code, needle):
     p = run(*args, check=False)
     assert p.returncode == code, p.stderr
     assert needle in p.stderr
+
+
+@pytest.mark.parametrize("args, code, needle", [*BAD_USAGE, (["explore", "--object", "BROKEN"], 1, "mobility.urdf")])
+def test_under_json_an_error_is_one_json_line_with_its_exit_code(tmp_path, args, code, needle):
+    broken = tmp_path / "mobility.urdf"
+    broken.write_text("<robot name='x'><link name='a'/><joint name='j'")
+    args = [str(broken) if a == "BROKEN" else a for a in args]
+    p = run(*args, "--json", check=False)
+    assert p.returncode == code and p.stdout == "", (p.stdout, p.stderr)
+    lines = p.stderr.splitlines()
+    assert len(lines) == 1, p.stderr
+    err = json.loads(lines[0])
+    assert err["exit_code"] == code and needle in err["error"], err
+    assert err["causes"] and all(c in err["error"] for c in err["causes"]), err
 
 
 def test_a_portrait_resolution_is_rendered_as_asked_with_a_warning(tmp_path):

@@ -250,6 +250,13 @@ fn main() {
     }
     let cli = match Cli::try_parse() {
         Ok(c) => c,
+        // A usage error under --json is one JSON line, as any other error.
+        Err(e) if json_requested() && e.use_stderr() => {
+            let text = e.render().to_string();
+            let first = text.lines().next().unwrap_or_default();
+            let message = first.trim_start_matches("error: ");
+            report_json_error(message, &[message.to_owned()], 2)
+        }
         Err(e) => e.exit(), // clap: usage errors exit with 2, --help/--version with 0
     };
     let ctx = Ctx { json: cli.json };
@@ -271,9 +278,25 @@ fn main() {
             1
         };
         let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
+        if ctx.json {
+            report_json_error(&msg.join(": "), &msg, code);
+        }
         eprintln!("error: {}", msg.join(": "));
         std::process::exit(code);
     }
+}
+
+/// `--json` anywhere on the command line, before clap has parsed it.
+fn json_requested() -> bool {
+    std::env::args_os().any(|a| a == "--json")
+}
+
+/// An error under `--json`: one line of JSON on stderr, `{"error": message,
+/// "causes": [outermost .. innermost], "exit_code": code}`, then exit.
+fn report_json_error(message: &str, causes: &[String], code: i32) -> ! {
+    let line = serde_json::json!({"error": message, "causes": causes, "exit_code": code});
+    eprintln!("{line}");
+    std::process::exit(code)
 }
 
 #[cfg(test)]
