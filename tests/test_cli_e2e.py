@@ -253,6 +253,10 @@ def test_learned_policy_episode_and_infer(tmp_path):
 
     same = [json.loads(infer(d).stdout) for d in ("depth_mm.png", "depth64.npy")]
     assert all(r["pixel"] == res["pixel"] for r in same), (same, res)
+    assert "warning" not in infer("depth_mm.png").stderr
+    # Millimetres read as metres put the object kilometres away: said, with the scale that fits.
+    far = infer("depth_mm.png", "--depth-scale", "1")
+    assert "depth_mm.png: the median depth is" in far.stderr and "1e-3 would put it at" in far.stderr, far.stderr
     # Nonsense is refused by name, never clamped or ignored.
     for args, pose_, needle in [
         (("--grasp=99999,99999",), pose, "outside the 96x128 image"),

@@ -40,6 +40,8 @@ pub struct EpisodeArgs {
     /// model's.
     #[arg(long, default_value = "240x320", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
+    /// Renderer: wgpu (a GPU, or Vulkan's CPU driver), cpu (built in), or auto
+    /// (wgpu when an adapter exists, else cpu, with a notice).
     #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
     pub renderer: RendererKind,
     /// Write one PNG per step, a contact sheet and an animated GIF here.

@@ -32,13 +32,16 @@ pub struct InferArgs {
     /// Reference (goal) colour image; with it the goal task is solved.
     #[arg(long)]
     pub reference: Option<PathBuf>,
+    /// Depth of the reference image (same format and scale as --depth).
     #[arg(long)]
     pub reference_depth: Option<PathBuf>,
     /// Pixel (row,col) the gripper holds; without it the position action is chosen.
     #[arg(long, value_delimiter = ',')]
     pub grasp: Vec<usize>,
+    /// Model package (default: $UMPNET_MODEL, then models/umpnet-small as `explore` finds it).
     #[arg(long)]
     pub model: Option<PathBuf>,
+    /// Seed of the direction sampling (CEM).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }
@@ -181,6 +184,41 @@ fn read_depth_png(path: &Path, scale: f32) -> Result<(usize, usize, Vec<f32>)> {
     ))
 }
 
+/// Where a robot's RGB-D camera sees a tabletop object: a median depth
+/// outside this range (metres) usually means a wrong --depth-scale.
+const PLAUSIBLE_DEPTH_M: std::ops::RangeInclusive<f32> = 0.05..=10.0;
+
+/// A warning when the median valid depth lies outside [`PLAUSIBLE_DEPTH_M`],
+/// with the scale that would bring it to about a metre.
+fn implausible_depth(depth_m: &[f32], scale: f32, file: &Path) -> Option<String> {
+    let mut valid: Vec<f32> = depth_m
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
+    if valid.is_empty() {
+        return None;
+    }
+    let mid = valid.len() / 2;
+    let (_, median, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
+    let median = *median;
+    if PLAUSIBLE_DEPTH_M.contains(&median) {
+        return None;
+    }
+    // The power of ten that puts the median between 0.3 and 3 m.
+    let suggested = scale * 10f32.powf((1.0 / median).log10().round());
+    Some(format!(
+        "{}: the median depth is {median:.3e} m, outside the {:.2}..{:.0} m a camera sees \
+         an object at; is the unit right? 16-bit depth is multiplied by --depth-scale \
+         (now {scale}; {suggested:e} would put it at {:.2} m; millimetres are 0.001), and \
+         float .npy depth is read as metres",
+        file.display(),
+        PLAUSIBLE_DEPTH_M.start(),
+        PLAUSIBLE_DEPTH_M.end(),
+        median * suggested / scale
+    ))
+}
+
 fn load_frame(rgb: &Path, depth: &Path, a: &InferArgs, camera: &Camera) -> Result<OwnedFrame> {
     input(rgb, MAX_IMAGE_BYTES)?;
     let img = image::open(rgb)
@@ -199,6 +237,9 @@ fn load_frame(rgb: &Path, depth: &Path, a: &InferArgs, camera: &Camera) -> Resul
             img.width(),
             depth.display()
         )));
+    }
+    if let Some(warning) = implausible_depth(&d, a.depth_scale, depth) {
+        eprintln!("warning: {warning}");
     }
     Ok(OwnedFrame {
         width: w,

@@ -7,10 +7,13 @@ use umpnet_sim::objects::{Category, write_dataset};
 pub enum ObjectsCmd {
     /// Write URDF + OBJ instances in the PartNet-Mobility layout, plus split.json.
     Generate {
+        /// Folder to write CATEGORY/INSTANCE/mobility.urdf (and meshes) into.
         #[arg(long)]
         out: PathBuf,
+        /// Instances per category; split.json says which are train and which test instances.
         #[arg(long, default_value_t = 20)]
         per_category: u32,
+        /// Dataset seed: the same seed writes the same objects.
         #[arg(long, default_value_t = 0)]
         seed: u64,
         /// Comma-separated categories (default: all 22).

@@ -11,8 +11,12 @@ pub struct RenderArgs {
     /// Image size as HEIGHTxWIDTH (rows x columns), e.g. 480x640.
     #[arg(long, default_value = "480x640", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
+    /// Renderer: wgpu (a GPU, or Vulkan's CPU driver), cpu (built in), or auto
+    /// (wgpu when an adapter exists, else cpu, with a notice).
     #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
     pub renderer: RendererKind,
+    /// Folder for color.png, depth.png (for viewing), depth.npy (metres),
+    /// depth_mm.png, segmentation.png, normals.png and camera.json.
     #[arg(long)]
     pub out: PathBuf,
 }

@@ -39,6 +39,8 @@ pub enum EvalAction {
 
 #[derive(clap::Args)]
 pub struct EvalArgs {
+    /// Exploration (novel-state ratio, single action effect, joint-axis error)
+    /// or goal (success, normalised distance).
     #[arg(long, default_value = "exploration", value_parser = crate::choice::<Task>(crate::TASKS))]
     pub task: Task,
     /// Comma-separated categories (overrides --split).
@@ -53,6 +55,7 @@ pub struct EvalArgs {
     /// writes this layout from MJCF files.
     #[arg(long, value_name = "DIR")]
     pub objects: Option<PathBuf>,
+    /// Scenes per row (category or object); every policy runs each scene.
     #[arg(long, default_value_t = 100)]
     pub episodes_per_category: u32,
     /// Comma-separated policies: random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
@@ -61,12 +64,15 @@ pub struct EvalArgs {
     /// Model package for `umpnet` (default: models/umpnet-small).
     #[arg(long)]
     pub model: Option<PathBuf>,
+    /// Benchmark seed: the scenes, and each policy's seed per scene, derive from it.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Camera images (HEIGHTxWIDTH) of oracle and random; a learned policy
     /// sees its package's input resolution. All see the same scenes.
     #[arg(long, default_value = "120x160", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
+    /// Renderer: wgpu (a GPU, or Vulkan's CPU driver), cpu (built in), or auto
+    /// (wgpu when an adapter exists, else cpu, with a notice).
     #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
     pub renderer: RendererKind,
     /// Physics profile: reference (the paper's simulator) or ideal.
