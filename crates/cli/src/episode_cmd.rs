@@ -214,50 +214,46 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
     Ok(())
 }
 
-/// The paper's joint-axis inference from the executed directions, against the truth.
+/// The paper's joint-axis inference from the executed directions, for a
+/// joint of the grasped joint's kind, against the truth.
 fn print_axis_estimate(ep: &umpnet_eval::episode::Episode) -> Result<()> {
     use nalgebra::Vector3;
-    use umpnet_policy::axis::{JointEstimate, axis_angle_deg, infer_joint};
-    let moved: Vec<&Step> = ep.steps.iter().filter(|s| s.record.labels.moved).collect();
-    let dirs: Vec<Vector3<f32>> = moved
-        .iter()
-        .map(|s| Vector3::from(s.record.direction))
-        .collect();
-    let pts: Vec<Vector3<f32>> = moved
-        .iter()
-        .map(|s| Vector3::from(s.gripper_in_world))
-        .collect();
-    let (Some(est), Some(j)) = (infer_joint(&dirs, &pts), ep.joint) else {
-        outln!("joint axis: too few effective actions to infer");
+    use umpnet_policy::axis::axis_of_known_kind;
+    let (Some(err), Some(j)) = (ep.metrics.axis, ep.joint) else {
+        outln!("joint axis: fewer than two moves of the part; nothing to infer it from");
         return Ok(());
     };
+    let dirs: Vec<Vector3<f32>> = ep
+        .steps
+        .iter()
+        .filter(|s| s.record.labels.moved)
+        .map(|s| Vector3::from(s.record.direction))
+        .collect();
+    let axis = axis_of_known_kind(&dirs, err.prismatic).unwrap_or_default();
     let model = std::sync::Arc::new(ep.scene.object.load()?);
     let mut art = umpnet_sim::physics::Articulation::new(
-        model.clone(),
+        model,
         ep.scene.world_from_base(),
         Default::default(),
     );
     art.set_joint_positions(&ep.scene.joints)?;
-    let (true_axis, _) = art.joint_axis_in_world(j);
-    let truth = Vector3::new(true_axis.x, true_axis.y, true_axis.z);
-    let (kind, axis) = match &est {
-        JointEstimate::Prismatic { axis } => ("prismatic", axis),
-        JointEstimate::Revolute { axis, .. } => ("revolute", axis),
-    };
-    let true_kind = if model.joints.get(j).is_some_and(|jm| jm.kind.is_prismatic()) {
-        "prismatic"
-    } else {
-        "revolute"
+    let (truth, _) = art.joint_axis_in_world(j);
+    let kind = if err.prismatic { "prismatic" } else { "revolute" };
+    let looks = match (err.prismatic, err.looks_prismatic) {
+        (false, true) => " (the moves alone look like a slide's: the hinge turned little)",
+        (true, false) => " (the moves alone do not line up as a slide's)",
+        _ => "",
     };
     outln!(
-        "joint axis: inferred {kind} ({:.3}, {:.3}, {:.3}); true {true_kind} ({:.3}, {:.3}, {:.3}); angle error {:.1} deg",
-        axis[0],
-        axis[1],
-        axis[2],
+        "joint axis ({kind}, from {} moves): inferred ({:.3}, {:.3}, {:.3}), true ({:.3}, {:.3}, {:.3}), {:.1} deg apart{looks}",
+        dirs.len(),
+        axis.x,
+        axis.y,
+        axis.z,
         truth.x,
         truth.y,
         truth.z,
-        axis_angle_deg(&Vector3::from(*axis), &truth)
+        err.degrees
     );
     Ok(())
 }

@@ -72,19 +72,21 @@ pub struct Metrics {
 pub struct AxisError {
     /// The true joint is prismatic (the paper reports the two kinds apart).
     pub prismatic: bool,
-    /// The inference took the moves for a prismatic joint's.
-    pub inferred_prismatic: bool,
-    /// Angle between the inferred and the true axis, ignoring sign, in
-    /// degrees: 0 to 90. A revolute joint taken for a prismatic one has
-    /// its motion direction as axis, about 90 degrees off.
+    /// Angle between the true axis and the one the paper infers for a joint
+    /// of the true kind (the mean move of a slide, the normal of a hinge's
+    /// plane of moves), ignoring sign, in degrees: 0 to 90.
     pub degrees: f32,
+    /// Whether the moves alone look like a slide's (what `explore` and
+    /// `infer` report without knowing the kind): a hinge turned through a
+    /// small angle does.
+    pub looks_prismatic: bool,
 }
 
 /// The paper's joint-axis inference over the steps that moved the part,
-/// against `true_axis`.
+/// for a joint of the true kind, against `true_axis`.
 pub fn axis_error(steps: &[Step], prismatic: bool, true_axis: [f32; 3]) -> Option<AxisError> {
     use nalgebra::Vector3;
-    use umpnet_policy::axis::{JointEstimate, axis_angle_deg, infer_joint};
+    use umpnet_policy::axis::{JointEstimate, axis_angle_deg, axis_of_known_kind, infer_joint};
     let moved = steps.iter().filter(|s| s.record.labels.moved);
     let (directions, points): (Vec<_>, Vec<_>) = moved
         .map(|s| {
@@ -94,14 +96,14 @@ pub fn axis_error(steps: &[Step], prismatic: bool, true_axis: [f32; 3]) -> Optio
             )
         })
         .unzip();
-    let (inferred_prismatic, axis) = match infer_joint(&directions, &points)? {
-        JointEstimate::Prismatic { axis } => (true, axis),
-        JointEstimate::Revolute { axis, .. } => (false, axis),
-    };
+    let axis = axis_of_known_kind(&directions, prismatic)?;
     Some(AxisError {
         prismatic,
-        inferred_prismatic,
-        degrees: axis_angle_deg(&Vector3::from(axis), &Vector3::from(true_axis)),
+        degrees: axis_angle_deg(&axis, &Vector3::from(true_axis)),
+        looks_prismatic: matches!(
+            infer_joint(&directions, &points),
+            Some(JointEstimate::Prismatic { .. })
+        ),
     })
 }
 

@@ -201,37 +201,28 @@ fn the_paper_ends_a_goal_episode_only_where_the_goal_is_reached() {
 #[test]
 fn the_oracles_moves_give_back_the_true_axis_of_hinges_and_slides() {
     // The oracle picks the best of its sampled directions, so its pulls on a
-    // slide stray up to about 10 degrees from the axis; on a door the plane
-    // of its pulls is the hinge's to within a degree. (The paper's policy:
-    // under 11.6 and 32.2 degrees.)
+    // slide stray up to about 10 degrees from the axis; the plane of its
+    // pulls on a hinge is the hinge's to within a degree or two. (The
+    // paper's policy: under 11.6 degrees on hinges, 32.2 on slides.)
     let (mut hinges, mut slides) = (0, 0);
-    for (category, k) in (0..4)
-        .map(|k| (Category::Door, k))
-        .chain((0..6).map(|k| (Category::Window, k)))
-    {
-        let ep = run(Task::Exploration, category, k, Protocol::Paper);
-        let Some(axis) = ep.metrics.axis else {
-            continue;
-        };
-        if axis.prismatic {
-            slides += 1;
-            assert!(
-                axis.inferred_prismatic && axis.degrees < 15.0,
-                "{category} #{k}: {axis:?}"
-            );
-        } else if category == Category::Door {
-            // (A window's sash turns through too small an angle for its
-            // pulls to tell a hinge from a slide.)
-            hinges += 1;
-            assert!(
-                !axis.inferred_prismatic && axis.degrees < 2.0,
-                "{category} #{k}: {axis:?}"
-            );
+    for category in [Category::Door, Category::Window, Category::Microwave] {
+        for k in 0..4 {
+            let ep = run(Task::Exploration, category, k, Protocol::Paper);
+            let Some(axis) = ep.metrics.axis else {
+                continue;
+            };
+            let bound = if axis.prismatic { 15.0 } else { 2.0 };
+            assert!(axis.degrees < bound, "{category} #{k}: {axis:?}");
+            *(if axis.prismatic {
+                &mut slides
+            } else {
+                &mut hinges
+            }) += 1;
         }
     }
     assert!(
-        hinges >= 3 && slides >= 3,
-        "axes of {hinges} door hinges and {slides} window slides"
+        hinges >= 4 && slides >= 2,
+        "axes of {hinges} hinges and {slides} slides"
     );
 }
 

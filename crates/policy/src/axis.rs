@@ -46,19 +46,39 @@ pub fn l1_plane_normal(directions: &[Vector3<f32>]) -> Option<Vector3<f32>> {
     n
 }
 
+/// The mean of unit `directions` after flipping each to the side of the
+/// first: a prismatic joint is pushed and pulled along one line.
+fn aligned_mean(directions: &[Vector3<f32>]) -> Vector3<f32> {
+    let first = directions[0];
+    let sum: Vector3<f32> = directions
+        .iter()
+        .map(|d| if d.dot(&first) < 0.0 { -d } else { *d })
+        .sum();
+    sum / directions.len() as f32
+}
+
+/// The paper's axis for a joint of known kind, as its evaluation computes
+/// it: the mean action direction for a prismatic joint, the normal of the
+/// common action plane for a revolute one. None with fewer than 2 directions.
+pub fn axis_of_known_kind(directions: &[Vector3<f32>], prismatic: bool) -> Option<Vector3<f32>> {
+    if directions.len() < 2 {
+        return None;
+    }
+    if prismatic {
+        let mean = aligned_mean(directions);
+        (mean.norm() > 1e-6).then(|| mean.normalize())
+    } else {
+        l1_plane_normal(directions)
+    }
+}
+
 /// Infers the joint from executed unit `directions` and the gripper positions
 /// `points` where each was executed. Returns None with fewer than 2 actions.
 pub fn infer_joint(directions: &[Vector3<f32>], points: &[Vector3<f32>]) -> Option<JointEstimate> {
     if directions.len() < 2 || directions.len() != points.len() {
         return None;
     }
-    // Directions of a prismatic joint are (anti)parallel: align signs to the first.
-    let first = directions[0];
-    let aligned: Vec<Vector3<f32>> = directions
-        .iter()
-        .map(|d| if d.dot(&first) < 0.0 { -d } else { *d })
-        .collect();
-    let mean: Vector3<f32> = aligned.iter().sum::<Vector3<f32>>() / aligned.len() as f32;
+    let mean = aligned_mean(directions);
     if mean.norm() > 0.97 {
         let a = mean.normalize();
         return Some(JointEstimate::Prismatic {
