@@ -103,7 +103,7 @@ PYTEST = PYTHONPATH=tests/plugins PYTEST_ADDOPTS="-p skipguard" $(PY) -m pytest 
 
 test-python: build py fixture
 	# One process per suite: native libraries loaded by one suite cannot affect another.
-	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_e2e.py tests/test_skipguard.py
+	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_e2e.py tests/test_skipguard.py tests/test_mutant_records.py
 	# Ray on a local cluster: sharded evaluation, retries.
 	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_ray.py
 	# Evaluation at any size: flat memory, resume after a kill, merging many shards.
@@ -119,7 +119,7 @@ test-python: build py fixture
 
 # cargo-mutants groups whose committed record (docs/mutants/) must be of the
 # current sources and agree with docs/harmless-mutants.txt.
-MUTANT_RECORDS ?=
+MUTANT_RECORDS ?= sim
 
 # The audit's deliberate bugs (and every hand-made mutant with --all below)
 # must fail the tests; the cargo-mutants records must be current.
