@@ -46,6 +46,44 @@ def test_explore_json_reports_metrics_and_oracle_beats_random():
     assert ratios["oracle"] > ratios["random"]
 
 
+def expected_end(ep, task):
+    """How an episode ended, from its recorded fields."""
+    if not ep["valid_position"]:
+        return "missed"
+    if ep["stopped_early"]:
+        return "policy_stopped"
+    if ep["ended_by_protocol"]:
+        return "goal_reached" if task == "goal" else "joint_limit"
+    if not any(s["record"]["labels"]["moved"] for s in ep["steps"]):
+        return "no_effect"
+    return "budget"
+
+
+@pytest.mark.parametrize(
+    "task, args, end",
+    [
+        ("explore", ["--category", "Door"], "joint_limit"),
+        ("explore", ["--category", "Door", "--protocol", "strict"], "budget"),
+        ("goal", ["--category", "Door"], "goal_reached"),
+        ("explore", ["--category", "Door", "--policy", "random", "--seed", "2"], None),
+        ("explore", ["--category", "Box", "--policy", "random", "--seed", "5"], None),
+    ],
+)
+def test_every_episode_says_how_it_ended(task, args, end):
+    ep = json.loads(run("--json", task, *args).stdout)
+    assert ep["ended"] == expected_end(ep, task) and (end is None or ep["ended"] == end), ep["ended"]
+    words = {
+        "joint_limit": "reached a joint limit",
+        "budget": "steps spent",
+        "goal_reached": "the goal was reached",
+        "no_effect": "none of them moved the part",
+        "missed": "not on a movable part",
+        "policy_stopped": "the policy stopped",
+    }
+    assert "ended: " in run(task, *args).stdout
+    assert words[ep["ended"]] in run(task, *args).stdout
+
+
 def test_goal_episode_with_pictures(tmp_path):
     out = json.loads(run("--json", "goal", "--category", "Door", "--seed", "2", "--out", str(tmp_path)).stdout)
     assert out["metrics"]["success"] is True

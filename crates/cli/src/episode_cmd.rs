@@ -139,8 +139,13 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         images::save(&contact_sheet(&tiles), &out.join("episode.png"))?;
         write_gif(&pictures, &out.join("episode.gif"))?;
     }
+    let (ended, why) = end_reason(&ep, task);
     if ctx.json {
-        outln!("{}", serde_json::to_string(&ep)?);
+        let mut value = serde_json::to_value(&ep)?;
+        if let Some(map) = value.as_object_mut() {
+            map.insert("ended".into(), ended.into());
+        }
+        outln!("{value}");
         return Ok(());
     }
     let what = scene
@@ -188,9 +193,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
             l.aot
         );
     }
-    if ep.stopped_early {
-        outln!("policy stopped after {} steps", ep.steps.len());
-    }
+    outln!("ended: {why}");
     let m = &ep.metrics;
     match task {
         Task::Exploration => outln!(
@@ -212,6 +215,41 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         outln!("pictures in {}", out.display());
     }
     Ok(())
+}
+
+/// How an episode ended, as a code (`--json`'s `ended`) and in words.
+fn end_reason(ep: &umpnet_eval::episode::Episode, task: Task) -> (&'static str, String) {
+    let n = ep.steps.len();
+    if !ep.valid_position {
+        (
+            "missed",
+            "the grasp is not on a movable part, so no move was made".into(),
+        )
+    } else if ep.stopped_early {
+        (
+            "policy_stopped",
+            format!("the policy stopped after {n} steps"),
+        )
+    } else if ep.ended_by_protocol && task == Task::Goal {
+        (
+            "goal_reached",
+            format!("the goal was reached in {n} of {} steps", ep.budget),
+        )
+    } else if ep.ended_by_protocol {
+        (
+            "joint_limit",
+            format!(
+                "the part reached a joint limit after {n} steps (the paper's protocol ends exploration there)"
+            ),
+        )
+    } else if !ep.steps.iter().any(|s| s.record.labels.moved) {
+        (
+            "no_effect",
+            format!("all {} steps spent, none of them moved the part", ep.budget),
+        )
+    } else {
+        ("budget", format!("all {} steps spent", ep.budget))
+    }
 }
 
 /// The paper's joint-axis inference from the executed directions, for a
@@ -238,7 +276,11 @@ fn print_axis_estimate(ep: &umpnet_eval::episode::Episode) -> Result<()> {
     );
     art.set_joint_positions(&ep.scene.joints)?;
     let (truth, _) = art.joint_axis_in_world(j);
-    let kind = if err.prismatic { "prismatic" } else { "revolute" };
+    let kind = if err.prismatic {
+        "prismatic"
+    } else {
+        "revolute"
+    };
     let looks = match (err.prismatic, err.looks_prismatic) {
         (false, true) => " (the moves alone look like a slide's: the hinge turned little)",
         (true, false) => " (the moves alone do not line up as a slide's)",
