@@ -7,7 +7,7 @@ export XDG_RUNTIME_DIR ?= /tmp
 FIXTURE := $(CURDIR)/target/fixture
 export UMPNET_FIXTURE := $(FIXTURE)
 
-.PHONY: install install-runtime build py fixture demo eval-baselines eval-objects eval-fields-ablation train-baselines test test-rerun lint lint-rerun test-rust test-python mutants mutants-ci clean
+.PHONY: check install install-runtime build py fixture demo eval-baselines eval-objects eval-fields-ablation train-baselines test test-rerun lint lint-rerun test-rust test-python mutants mutants-ci clean
 
 install:
 	@bash scripts/install.sh all
@@ -86,6 +86,13 @@ train-baselines: build py
 RERUN := -p umpnet-cli --features umpnet-cli/rerun
 lint-rerun: install
 	cargo clippy --release $(RERUN) --all-targets -- -D warnings
+
+# The fast inner loop: rustfmt, clippy and the Rust unit tests; no venv, no
+# PyTorch, no apt (a Rust toolchain is all it needs).
+check:
+	cargo fmt --all --check
+	cargo clippy --release --workspace --all-targets $(CARGO_FEATURES) -- -D warnings
+	cargo test --release --workspace --lib $(CARGO_FEATURES)
 
 lint: install
 	cargo fmt --all --check

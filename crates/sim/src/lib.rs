@@ -1,7 +1,8 @@
 //! umpnet-sim: the articulated-object simulator behind umpnet.
 //!
 //! URDF (PartNet-Mobility or generated) -> [`urdf::ObjectModel`] ->
-//! [`physics::Articulation`] (rapier3d multibody + suction gripper).
+//! [`physics::Articulation`] (the suction gripper on the `reference` solver,
+//! by default, or on a rapier3d multibody with the `ideal` profile).
 pub mod error;
 pub mod fsio;
 pub mod math;
