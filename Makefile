@@ -92,7 +92,7 @@ lint-rerun: install
 check:
 	cargo fmt --all --check
 	cargo clippy --release --workspace --all-targets $(CARGO_FEATURES) -- -D warnings
-	cargo test --release --workspace --lib $(CARGO_FEATURES)
+	cargo test --release --workspace --lib --bins $(CARGO_FEATURES)
 
 lint: install
 	cargo fmt --all --check
