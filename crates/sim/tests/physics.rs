@@ -308,3 +308,89 @@ fn generated_files_are_plain_urdf_that_urdf_rs_reads_without_mending() {
         assert_eq!(m.links.len(), robot.links.len());
     }
 }
+
+/// The test cabinet (door, drawer, lid) 0.5 m in front of the camera's side.
+fn cabinet(profile: PhysicsProfile) -> (Arc<ObjectModel>, Articulation) {
+    let urdf = include_str!("data/cabinet.urdf");
+    let model =
+        Arc::new(umpnet_sim::urdf::parse_urdf(urdf, std::path::Path::new("cabinet.urdf")).unwrap());
+    let art = Articulation::new(
+        model.clone(),
+        Pose3::from_translation(Vec3::new(0.0, -0.5, 0.0)),
+        PhysicsConfig::with_profile(profile),
+    );
+    (model, art)
+}
+
+#[test]
+fn both_profiles_hold_a_grasp_until_released_and_set_joints_to_absolute_values() {
+    for profile in PhysicsProfile::ALL {
+        let (m, mut art) = cabinet(*profile);
+        let j = m.joint_by_name("drawer_slide").unwrap();
+        let drawer = m.links.iter().position(|l| l.name == "drawer").unwrap();
+        assert!(
+            drawer > 1,
+            "the drawer's index must tell it from links 0 and 1"
+        );
+        assert_eq!((art.grasped_link(), art.gripper_position()), (None, None));
+        assert!(art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).is_err());
+        art.attach(Vec3::new(0.0, -0.76, 0.25), drawer).unwrap();
+        assert_eq!(art.grasped_link(), Some(drawer), "{profile:?}");
+        art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).unwrap();
+        assert_eq!(
+            art.grasped_link(),
+            Some(drawer),
+            "{profile:?}: an action keeps the grasp"
+        );
+        art.release();
+        assert_eq!(
+            (art.grasped_link(), art.gripper_position()),
+            (None, None),
+            "{profile:?}"
+        );
+        assert!(
+            art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).is_err(),
+            "{profile:?}"
+        );
+        // Joints are set to the values given, wherever they were: twice, from
+        // a state that is not the rest state.
+        art.attach(Vec3::new(0.0, -0.9, 0.25), drawer).unwrap();
+        for values in [[0.3, 0.2, 0.5], [0.1, 0.05, 0.2]] {
+            art.set_joint_positions(&values).unwrap();
+            for (k, v) in values.iter().enumerate() {
+                let now = art.joint_position(k);
+                assert!(
+                    (now - v).abs() < 1e-4,
+                    "{profile:?}: joint {k} at {now}, set to {v}"
+                );
+                assert_eq!(art.joint_velocity(k), 0.0, "{profile:?}");
+            }
+            assert_eq!(
+                art.grasped_link(),
+                None,
+                "{profile:?}: setting the joints lets go"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_ideal_set_point_travels_the_action_at_the_action_speed() {
+    let cfg = PhysicsConfig::with_profile(PhysicsProfile::Ideal);
+    let (m, mut art) = cabinet(PhysicsProfile::Ideal);
+    let j = m.joint_by_name("drawer_slide").unwrap();
+    let drawer = m.links.iter().position(|l| l.name == "drawer").unwrap();
+    art.attach(Vec3::new(0.0, -0.76, 0.25), drawer).unwrap();
+    let o = art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).unwrap();
+    // A set-point that jumped ahead would end the action in fewer steps.
+    let travelled = o.steps as f32 * cfg.dt * cfg.action_speed;
+    assert!(
+        travelled >= cfg.action_length - 1e-4,
+        "{} steps of {} s at {} m/s cover {travelled} m, short of the {} m action",
+        o.steps,
+        cfg.dt,
+        cfg.action_speed,
+        cfg.action_length
+    );
+    assert!(o.joint_after - o.joint_before > 0.1, "{o:?}");
+}
