@@ -1,5 +1,6 @@
 """End-to-end tests of the `umpnet` binary: what a researcher types in a shell."""
 
+import itertools
 import json
 import math
 import os
@@ -82,6 +83,28 @@ def test_every_episode_says_how_it_ended(task, args, end):
     }
     assert "ended: " in run(task, *args).stdout
     assert words[ep["ended"]] in run(task, *args).stdout
+
+
+def test_the_prev90_filter_never_turns_back_on_the_last_move(tmp_path):
+    def directions(seed, *flags):
+        args = ("--json", "explore", "--category", "Box", "--policy", "umpnet", "--protocol", "strict")
+        ep = json.loads(run(*args, "--seed", str(seed), *flags).stdout)
+        return [s["record"]["direction"] for s in ep["steps"]]
+
+    changed = 0
+    for seed in range(6):
+        filtered = directions(seed, "--direction-filter", "prev90")
+        assert all(np.dot(a, b) >= 0 for a, b in itertools.pairwise(filtered)), (seed, filtered)
+        changed += filtered != directions(seed)
+    assert changed, "the filter changed no episode"
+    # The heuristic has no meaning in the goal task, and eval records it.
+    p = run("goal", "--category", "Door", "--policy", "umpnet", "--direction-filter", "prev90", check=False)
+    assert p.returncode == 2 and "exploration only" in p.stderr, p.stderr
+    ev = ["eval", "--categories", "Box", "--episodes-per-category", "1", "--policies", "umpnet"]
+    run(*ev, "--direction-filter", "prev90", "--out", str(tmp_path / "hp"))
+    assert json.loads((tmp_path / "hp" / "results.json").read_text())["summary"]["direction_filter"] == "prev90"
+    run(*ev, "--out", str(tmp_path / "plain"))
+    assert "direction_filter" not in json.loads((tmp_path / "plain" / "results.json").read_text())["summary"]
 
 
 def test_goal_episode_with_pictures(tmp_path):

@@ -1,4 +1,5 @@
 use crate::{Ctx, images, usage};
+use umpnet_policy::policy::DirectionFilter;
 use anyhow::{Context, Result};
 use image::RgbImage;
 use std::path::PathBuf;
@@ -33,6 +34,11 @@ pub struct EpisodeArgs {
     /// random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
     #[arg(long, default_value = "oracle")]
     pub policy: String,
+    /// A learned policy's direction filter instead of its package's: none,
+    /// normal90 (within 90 degrees of the surface normal) or prev90 (within
+    /// 90 degrees of the previous action, the paper's +HP; exploration only).
+    #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
+    pub direction_filter: Option<DirectionFilter>,
     /// Model package for --policy umpnet (default: models/umpnet-small).
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -56,7 +62,13 @@ pub struct EpisodeArgs {
 
 pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
     let resolved =
-        crate::policies::resolve(std::slice::from_ref(&a.policy), a.model.as_deref(), 1, task)?;
+        crate::policies::resolve(
+        std::slice::from_ref(&a.policy),
+        a.model.as_deref(),
+        1,
+        task,
+        a.direction_filter,
+    )?;
     let mut policy: Box<dyn Policy> = match resolved.factories.first() {
         Some((_, make)) => make()?,
         None => return Err(usage("--policy is empty")),

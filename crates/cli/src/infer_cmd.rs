@@ -399,6 +399,7 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         reference: refv.view(),
         pixel: pixel_small,
         banned: &[],
+        previous: None,
         mode,
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);

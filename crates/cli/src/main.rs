@@ -165,6 +165,7 @@ pub const PHYSICS: &[&str] = &["reference", "ideal"];
 pub const PROTOCOLS: &[&str] = &["paper", "strict"];
 pub const TASKS: &[&str] = &["exploration|explore", "goal"];
 pub const RENDERERS: &[&str] = &["auto", "wgpu|gpu", "cpu"];
+pub const DIRECTION_FILTERS: &[&str] = &["none", "normal90", "prev90"];
 
 /// Which object and scene: a generated instance of a category, or a URDF file.
 #[derive(clap::Args, Clone)]
@@ -315,6 +316,10 @@ mod choice_tests {
         all_parse::<umpnet_eval::Protocol>(PROTOCOLS);
         all_parse::<Task>(TASKS);
         all_parse::<umpnet_sim::render::RendererKind>(RENDERERS);
+        all_parse::<umpnet_policy::policy::DirectionFilter>(DIRECTION_FILTERS);
+        for f in umpnet_policy::policy::DirectionFilter::ALL {
+            assert!(DIRECTION_FILTERS.contains(&f.name()), "{} is not offered", f.name());
+        }
         for p in PhysicsProfile::ALL {
             assert!(PHYSICS.contains(&p.name()), "{} is not offered", p.name());
         }

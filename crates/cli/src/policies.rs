@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use umpnet_eval::bench::PolicyFactory;
 use umpnet_eval::learned::LearnedPolicy;
+use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::scene::Task;
 
 /// Where the shipped model is looked for, in order: $UMPNET_MODEL (a package
@@ -56,13 +57,21 @@ pub struct Resolved {
     pub packages: Vec<(String, PathBuf)>,
 }
 
-/// Packages are checked against `task`: an Inverse package has no exploration behaviour.
+/// Packages are checked against `task`: an Inverse package has no exploration
+/// behaviour. `filter` replaces every learned package's direction filter.
 pub fn resolve(
     specs: &[String],
     model: Option<&Path>,
     sessions: usize,
     task: Task,
+    filter: Option<DirectionFilter>,
 ) -> Result<Resolved> {
+    if filter == Some(DirectionFilter::Prev90) && task == Task::Goal {
+        return Err(usage(
+            "--direction-filter prev90 serves exploration only (the paper's +HP baselines): \
+             in the goal task the way to the goal may lie behind the last move",
+        ));
+    }
     let mut factories: Vec<(String, PolicyFactory)> = Vec::new();
     let mut seen = std::collections::HashSet::new();
     for spec in specs {
@@ -129,8 +138,11 @@ pub fn resolve(
                 packages.push((name.clone(), dir.clone()));
                 let n = name.clone();
                 let f: PolicyFactory = Arc::new(move || {
-                    Ok(Box::new(LearnedPolicy::new(&n, pkg.clone()))
-                        as Box<dyn umpnet_eval::Policy>)
+                    let mut p = LearnedPolicy::new(&n, pkg.clone());
+                    if let Some(f) = filter {
+                        p = p.with_direction_filter(f);
+                    }
+                    Ok(Box::new(p) as Box<dyn umpnet_eval::Policy>)
                 });
                 factories.push((name, f));
             }

@@ -310,6 +310,7 @@ mod tests {
             None,
             1,
             Task::Goal,
+            None,
         )
         .expect("the shipped model (and ONNX Runtime) must load");
         let (_, make) = &resolved.factories[0];

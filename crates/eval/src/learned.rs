@@ -9,6 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use std::path::Path;
 use std::sync::Arc;
 use umpnet_policy::cem::Mode;
+use umpnet_policy::policy::DirectionFilter;
 use umpnet_policy::{CameraFrame, DecisionInput, ModelPackage, UmpnetPolicy, build_observation};
 use umpnet_sim::env::SimEnv;
 use umpnet_sim::math::Vec3;
@@ -66,6 +67,12 @@ impl LearnedPolicy {
             banned: Vec::new(),
             reference: None,
         }
+    }
+
+    /// The policy under another direction filter than its package's.
+    pub fn with_direction_filter(mut self, filter: DirectionFilter) -> Self {
+        self.policy = self.policy.with_direction_filter(filter);
+        self
     }
 
     /// Loads a package with `sessions` concurrent session sets (one per worker thread).
@@ -136,6 +143,7 @@ impl Policy for LearnedPolicy {
             reference: reference.view(),
             pixel,
             banned: &self.banned,
+            previous: history.last().map(|s| Vector3::from(s.direction)),
             mode,
         };
         let mut out = self.policy.directions(

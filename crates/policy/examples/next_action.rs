@@ -40,6 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         reference: obs.view(),
         pixel: position.pixel,
         banned: &[],
+        previous: None,
         mode: Mode::Explore,
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);

@@ -46,8 +46,9 @@ pub struct ModelMeta {
     pub branches: Vec<String>,
     pub uses_reference: bool,
     pub files: Files,
-    /// "none", or "normal90": only directions within 90 degrees of the surface
-    /// normal at the grasp (the Where2Act pulling heuristic).
+    /// A [`crate::policy::DirectionFilter`] by name: "none", "normal90" (only
+    /// directions within 90 degrees of the surface normal at the grasp) or
+    /// "prev90" (within 90 degrees of the previous action).
     #[serde(default = "default_filter")]
     pub direction_filter: String,
     /// The AoT class of each column of `aot_probs`: a permutation of -1, 0, +1
@@ -307,11 +308,15 @@ impl ModelPackage {
                 ),
             ));
         }
-        if !["none", "normal90"].contains(&meta.direction_filter.as_str()) {
+        if meta
+            .direction_filter
+            .parse::<crate::policy::DirectionFilter>()
+            .is_err()
+        {
             return Err(pkg_err(
                 &meta_path,
                 format!(
-                    "`direction_filter` is `{}`, expected none or normal90",
+                    "`direction_filter` is `{}`, expected none, normal90 or prev90",
                     meta.direction_filter
                 ),
             ));

@@ -25,7 +25,53 @@ pub struct DecisionInput<'a> {
     pub pixel: (usize, usize),
     /// Directions that just failed to move anything.
     pub banned: &'a [Vector3<f32>],
+    /// The direction executed last in this episode (world frame), which the
+    /// `prev90` filter reads; None before the first.
+    pub previous: Option<Vector3<f32>>,
     pub mode: Mode,
+}
+
+/// Which candidate directions the runtime rules out before CEM chooses:
+/// the heuristics of the paper's `+HP` baselines, usable with any package.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DirectionFilter {
+    /// Every direction may be chosen.
+    #[default]
+    None,
+    /// Only directions within 90 degrees of the surface normal at the grasp
+    /// (pull, never push into the part).
+    Normal90,
+    /// Only directions within 90 degrees of the previous action (the
+    /// paper's Where2Act+HP and UMPNet+HP): no back-and-forth. Exploration
+    /// only: a goal may lie behind the last move.
+    Prev90,
+}
+
+impl DirectionFilter {
+    pub const ALL: [DirectionFilter; 3] = [Self::None, Self::Normal90, Self::Prev90];
+
+    /// The name in model.json's `direction_filter` and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Normal90 => "normal90",
+            Self::Prev90 => "prev90",
+        }
+    }
+}
+
+impl std::str::FromStr for DirectionFilter {
+    type Err = PolicyError;
+    fn from_str(s: &str) -> Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| {
+                PolicyError::Input(format!(
+                    "unknown direction filter `{s}`; expected none, normal90 or prev90"
+                ))
+            })
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -37,11 +83,24 @@ pub struct PositionChoice {
 #[derive(Clone)]
 pub struct UmpnetPolicy {
     pub package: Arc<ModelPackage>,
+    /// The package's `direction_filter`, unless overridden.
+    pub direction_filter: DirectionFilter,
 }
 
 impl UmpnetPolicy {
     pub fn new(package: Arc<ModelPackage>) -> Self {
-        Self { package }
+        // The loader has checked the name.
+        let direction_filter = package.meta.direction_filter.parse().unwrap_or_default();
+        Self {
+            package,
+            direction_filter,
+        }
+    }
+
+    /// The same package under another direction filter.
+    pub fn with_direction_filter(mut self, filter: DirectionFilter) -> Self {
+        self.direction_filter = filter;
+        self
     }
 
     pub fn resolution(&self) -> (usize, usize) {
@@ -123,6 +182,15 @@ impl UmpnetPolicy {
         }
         if inputs.is_empty() {
             return Ok(Vec::new());
+        }
+        if self.direction_filter == DirectionFilter::Prev90
+            && inputs.iter().any(|i| i.mode == Mode::Goal)
+        {
+            return Err(PolicyError::Input(
+                "the prev90 direction filter serves exploration only: in the goal task the \
+                 way to the goal may lie behind the last move"
+                    .into(),
+            ));
         }
         if self.package.branches.goal_only() && inputs.iter().any(|i| i.mode != Mode::Goal) {
             return Err(PolicyError::Input(format!(
@@ -206,28 +274,33 @@ impl UmpnetPolicy {
             .collect())
     }
 
-    /// The Where2Act pulling heuristic, when the package asks for it: a
-    /// direction more than 90 degrees from the surface normal at the grasp
-    /// scores as "no effect".
+    /// Scores the directions that [`DirectionFilter`] rules out as "no
+    /// effect", so that CEM neither resamples around them nor picks them.
     fn filter(
         &self,
         inputs: &[DecisionInput],
         cands: &[Vec<Vector3<f32>>],
         scores: &mut [Vec<Score>],
     ) {
-        if self.package.meta.direction_filter != "normal90" {
-            return;
-        }
         let (h, w) = self.resolution();
         for (i, inp) in inputs.iter().enumerate() {
-            let (r, c) = on_image(inp.pixel, (h, w));
-            let n = Vector3::new(
-                inp.observation[[r, c, 6]],
-                inp.observation[[r, c, 7]],
-                inp.observation[[r, c, 8]],
-            );
+            let keep = match self.direction_filter {
+                DirectionFilter::None => continue,
+                DirectionFilter::Normal90 => {
+                    let (r, c) = on_image(inp.pixel, (h, w));
+                    Vector3::new(
+                        inp.observation[[r, c, 6]],
+                        inp.observation[[r, c, 7]],
+                        inp.observation[[r, c, 8]],
+                    )
+                }
+                DirectionFilter::Prev90 => match inp.previous {
+                    Some(p) => p,
+                    None => continue,
+                },
+            };
             for (d, s) in cands[i].iter().zip(scores[i].iter_mut()) {
-                if d.dot(&n) < 0.0 {
+                if d.dot(&keep) < 0.0 {
                     *s = Score {
                         distance: -1.0,
                         aot: 0,

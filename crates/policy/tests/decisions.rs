@@ -178,6 +178,7 @@ fn decide_at(
             reference: o.view(),
             pixel,
             banned,
+            previous: None,
             mode,
         })
         .collect();
@@ -320,6 +321,7 @@ fn the_inverse_baseline_acts_on_its_regressed_direction_in_the_goal_task_only() 
         reference: obs.view(),
         pixel: (h / 2, w / 2),
         banned: &[],
+        previous: None,
         mode: Mode::Explore,
     };
     let err = policy.directions(&[input], &mut rngs).err().unwrap();
@@ -339,6 +341,7 @@ fn explore<'a>(
         reference: reference.view(),
         pixel,
         banned: &[],
+        previous: None,
         mode: Mode::Explore,
     }
 }
@@ -414,4 +417,58 @@ fn the_normal90_filter_bans_nothing_where_the_grasp_has_no_normal() {
             "{d:?}: {s:?}"
         );
     }
+}
+
+#[test]
+fn the_prev90_filter_rules_out_turning_back_on_the_last_move() {
+    use umpnet_policy::policy::DirectionFilter;
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let policy = policy.with_direction_filter(DirectionFilter::Prev90);
+    let obs = observation(&policy, 7);
+    let (h, w) = policy.resolution();
+    let decide_after = |previous: Option<Vector3<f32>>, mode: Mode| {
+        let input = DecisionInput {
+            previous,
+            mode,
+            ..explore(&obs, &obs, (h / 2, w / 2))
+        };
+        policy.directions(&[input], &mut [ChaCha8Rng::seed_from_u64(3)])
+    };
+    // The last move went along -x: every candidate with a +x part turns back
+    // on it and scores as no effect, the forward ones included.
+    let back = Vector3::new(-1.0, 0.0, 0.0);
+    let r = decide_after(Some(back), Mode::Explore).unwrap().remove(0);
+    for (d, s) in r.candidates.iter().zip(&r.scores) {
+        if d.dot(&back) < 0.0 {
+            assert_eq!((s.distance, s.aot), (-1.0, 0), "{d:?}");
+        } else {
+            assert!(
+                (s.distance - (0.3 - 0.2 * d.x)).abs() < 1e-4,
+                "{d:?}: {s:?}"
+            );
+        }
+    }
+    assert!(r.direction.unwrap().x < -0.9, "{:?}", r.direction);
+    // Before the first move nothing is ruled out: exploration goes forward.
+    let first = decide_after(None, Mode::Explore).unwrap().remove(0);
+    assert!(first.scores.iter().all(|s| s.distance >= 0.0));
+    assert!(first.direction.unwrap().x > 0.0, "{:?}", first.direction);
+    // The heuristic has no meaning for a goal behind the last move.
+    let err = decide_after(Some(back), Mode::Goal).err().unwrap();
+    assert!(err.to_string().contains("exploration only"), "{err}");
+}
+
+#[test]
+fn direction_filters_are_named_as_in_model_json() {
+    use umpnet_policy::policy::DirectionFilter;
+    for f in DirectionFilter::ALL {
+        assert_eq!(f.name().parse::<DirectionFilter>().unwrap(), f);
+    }
+    let err = "prev45".parse::<DirectionFilter>().unwrap_err();
+    assert!(
+        err.to_string().contains("none, normal90 or prev90"),
+        "{err}"
+    );
 }

@@ -484,6 +484,7 @@ impl Policy {
                 reference: refs[i].view(),
                 pixel: (px[[i, 0]].max(0) as usize, px[[i, 1]].max(0) as usize),
                 banned: &[],
+                previous: None,
                 mode,
             })
             .collect();

@@ -6,6 +6,7 @@ mod report;
 mod stream;
 mod tables;
 
+use umpnet_policy::policy::DirectionFilter;
 use crate::{Ctx, usage};
 use anyhow::{Context, Result};
 use report::{Aggregate, ObjectInfo, Report, RunInfo, Scored};
@@ -61,6 +62,12 @@ pub struct EvalArgs {
     /// Comma-separated policies: random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
     #[arg(long, value_delimiter = ',', default_value = "oracle,random")]
     pub policies: Vec<String>,
+    /// Every learned policy's direction filter instead of its package's:
+    /// none, normal90 (within 90 degrees of the surface normal) or prev90
+    /// (within 90 degrees of the previous action, the paper's +HP;
+    /// exploration only).
+    #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
+    pub direction_filter: Option<DirectionFilter>,
     /// Model package for `umpnet` (default: models/umpnet-small).
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -258,7 +265,13 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     if !listed.iter().any(|p| p == "oracle") {
         listed.push("oracle".into());
     }
-    let resolved = crate::policies::resolve(&listed, a.model.as_deref(), threads, a.task)?;
+    let resolved = crate::policies::resolve(
+        &listed,
+        a.model.as_deref(),
+        threads,
+        a.task,
+        a.direction_filter,
+    )?;
     let mut models = BTreeMap::new();
     for (name, dir) in &resolved.packages {
         models.insert(name.clone(), package_digest(dir)?);
@@ -314,6 +327,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         models,
         categories,
         objects,
+        direction_filter: a.direction_filter.map(|f| f.name().to_owned()),
     };
     if let Some(dir) = &a.out
         && !a.force

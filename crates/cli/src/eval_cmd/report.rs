@@ -40,6 +40,10 @@ pub struct RunInfo {
     /// Object files scored as rows (`eval --objects`), after the categories.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub objects: Vec<ObjectInfo>,
+    /// `--direction-filter`: the filter every learned policy ran under, when
+    /// not its package's own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction_filter: Option<String>,
 }
 
 /// One object row: its name, its file and the SHA-256 of its folder (shards
