@@ -218,9 +218,10 @@ def main(argv=None) -> int:
     p.add_argument("out", type=Path)
     p.add_argument(
         "--direction-filter",
-        choices=["none", "normal90"],
+        choices=["none", "normal90", "prev90"],
         default="none",
-        help="normal90: the runtime keeps only directions within 90 degrees of the surface normal (Where2Act)",
+        help="normal90: the runtime keeps only directions within 90 degrees of the surface normal (Where2Act); "
+        "prev90: within 90 degrees of the previous action (the paper's +HP, exploration only)",
     )
     a = p.parse_args(argv)
     if not a.checkpoint.is_file():
