@@ -107,6 +107,28 @@ def test_the_prev90_filter_never_turns_back_on_the_last_move(tmp_path):
     assert "direction_filter" not in json.loads((tmp_path / "plain" / "results.json").read_text())["summary"]
 
 
+def test_paper_rows_set_each_category_beside_the_papers_figure(tmp_path):
+    ev = ["eval", "--categories", "Door,Laptop", "--episodes-per-category", "2"]
+    run(*ev, "--policies", "umpnet,random", "--out", str(tmp_path / "plain"))
+    run(*ev, "--policies", "umpnet", "--direction-filter", "prev90", "--out", str(tmp_path / "hp"))
+    script = [sys.executable, str(ROOT / "scripts" / "paper_rows.py"), str(tmp_path / "plain"), str(tmp_path / "hp")]
+    rows = json.loads(subprocess.run([*script, "--json"], check=True, capture_output=True, text=True).stdout)
+    got = {(r["policy"], r["category"], r["metric"]): r for r in rows}
+    # The paper's Table I: Door is its last test column, Laptop its third training one.
+    assert got[("umpnet", "Door", "novel_state_ratio")]["paper"] == 0.68
+    assert got[("umpnet", "Laptop", "single_action_effect")]["paper"] == 1.37
+    assert got[("umpnet+prev90", "Door", "novel_state_ratio")]["paper_method"] == "UMPNet+HP"
+    assert got[("umpnet+prev90", "Door", "novel_state_ratio")]["paper"] == 0.70
+    assert got[("random", "Door", "novel_state_ratio")]["paper"] is None
+    assert got[("umpnet", "Door", "novel_state_ratio")]["split"] == "test"
+    assert got[("umpnet", "Laptop", "novel_state_ratio")]["split"] == "train"
+    md = subprocess.run(script, check=True, capture_output=True, text=True).stdout
+    head = "| category | umpnet | paper: UMPNet | random | oracle | umpnet+prev90 | paper: UMPNet+HP |"
+    assert head in md, md
+    missing = subprocess.run([*script[:2], str(tmp_path / "none")], check=False, capture_output=True, text=True)
+    assert missing.returncode == 1 and "results.json not found" in missing.stderr
+
+
 def test_goal_episode_with_pictures(tmp_path):
     out = json.loads(run("--json", "goal", "--category", "Door", "--seed", "2", "--out", str(tmp_path)).stdout)
     assert out["metrics"]["success"] is True
