@@ -249,6 +249,13 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        // Silences a harmless warning of the Vulkan loader on headless
+        // machines. Here, not in the library: setting the environment is
+        // only sound before any thread exists.
+        // SAFETY: still single-threaded (see above).
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
+    }
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         // A usage error under --json is one JSON line, as any other error.

@@ -10,6 +10,14 @@
 - ``umpnet.gym``: a gymnasium wrapper (optional; needs gymnasium).
 """
 
+import os
+import tempfile
+
+# The Vulkan loader warns on headless machines without it. Set here, at
+# import, from Python: the Rust library never writes the environment, which
+# is unsound once other threads run.
+os.environ.setdefault("XDG_RUNTIME_DIR", tempfile.gettempdir())
+
 from ._umpnet import Articulation, Env, Policy, VecEnv, __version__, categories
 
 __all__ = ["Articulation", "Env", "Policy", "VecEnv", "__version__", "categories"]

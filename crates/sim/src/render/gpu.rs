@@ -42,11 +42,6 @@ pub fn gpu_available() -> bool {
 }
 
 fn init() -> std::result::Result<Gpu, String> {
-    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
-        // Silences a harmless warning of the Vulkan loader on headless machines.
-        // SAFETY: set once, at first use, before any renderer thread reads the environment.
-        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
-    }
     let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
     // Vulkan only, unless WGPU_BACKEND says otherwise (`gl`, `vulkan,gl`): an
     // enabled GL backend initialises EGL in this process, and another EGL
