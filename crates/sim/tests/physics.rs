@@ -394,3 +394,92 @@ fn the_ideal_set_point_travels_the_action_at_the_action_speed() {
     );
     assert!(o.joint_after - o.joint_before > 0.1, "{o:?}");
 }
+
+/// The drawer of the test cabinet at `q`, grasped at the middle of its
+/// front, on the ideal profile under `cfg`.
+fn grasped_drawer(cfg: PhysicsConfig, q: f32) -> (Articulation, usize, usize) {
+    let (m, _) = cabinet(PhysicsProfile::Ideal);
+    let mut art = Articulation::new(
+        m.clone(),
+        Pose3::from_translation(Vec3::new(0.0, -0.5, 0.0)),
+        cfg,
+    );
+    let j = m.joint_by_name("drawer_slide").unwrap();
+    let drawer = m.links.iter().position(|l| l.name == "drawer").unwrap();
+    art.set_joint_positions(&[0.0, q, 0.0]).unwrap();
+    let front = art.world_from_link(drawer).transform_point(Vec3::ZERO);
+    art.attach(front, drawer).unwrap();
+    (art, j, drawer)
+}
+
+#[test]
+fn an_ideal_pull_moves_a_free_drawer_the_action_length_along_the_pull_and_rests_on_the_grasp() {
+    let cfg = PhysicsConfig::with_profile(PhysicsProfile::Ideal);
+    let travel = (cfg.action_length / (cfg.action_speed * cfg.dt)).ceil() as usize;
+    let (mut art, j, drawer) = grasped_drawer(cfg.clone(), 0.1);
+    let on_grasp = |art: &Articulation| {
+        let held = art.world_from_link(drawer).transform_point(Vec3::ZERO);
+        (art.gripper_position().unwrap() - held).length()
+    };
+    for (d, sign) in [
+        (Vec3::new(0.0, -1.0, 0.0), 1.0),
+        (Vec3::new(0.0, 1.0, 0.0), -1.0),
+    ] {
+        let before = art.gripper_position().unwrap();
+        let o = art.move_gripper(d, j).unwrap();
+        let moved = art.gripper_position().unwrap() - before;
+        // A free part follows the whole action, along it.
+        assert!(
+            (o.joint_after - o.joint_before - sign * cfg.action_length).abs() < 0.005,
+            "{d}: {o:?}"
+        );
+        assert!(
+            (moved - d * cfg.action_length).length() < 0.005,
+            "{d}: moved {moved}"
+        );
+        // The set-point takes `travel` steps; the gripper then settles behind it.
+        assert!(o.steps > travel && o.steps <= travel + 15, "{d}: {o:?}");
+        assert!(on_grasp(&art) < 1e-4, "{d}: the gripper is off its grasp");
+    }
+    // Stopped by the limit, the gripper rests on the grasp, not where the
+    // drive's spring had stretched to.
+    art.set_joint_positions(&[0.0, 0.35, 0.0]).unwrap();
+    let front = art.world_from_link(drawer).transform_point(Vec3::ZERO);
+    art.attach(front, drawer).unwrap();
+    let o = art.move_gripper(Vec3::new(0.0, -1.0, 0.0), j).unwrap();
+    assert!((o.joint_after - 0.4).abs() < 0.005, "{o:?}");
+    assert!(
+        on_grasp(&art) < 1e-4,
+        "the gripper is off its grasp at the limit"
+    );
+}
+
+#[test]
+fn the_ideal_suction_lets_go_past_its_force_limit() {
+    let weak = PhysicsConfig {
+        suction_max_force: 100.0,
+        ..PhysicsConfig::with_profile(PhysicsProfile::Ideal)
+    };
+    // Pulling a drawer against its limit loads the suction up to the drive's
+    // 1500 N: a 100 N suction lets go, the default 2000 N one holds.
+    let (mut art, j, drawer) = grasped_drawer(weak.clone(), 0.35);
+    let before = art.gripper_position().unwrap();
+    let pull = Vec3::new(0.0, -1.0, 0.0);
+    let o = art.move_gripper(pull, j).unwrap();
+    assert!(o.suction_lost && art.grasped_link().is_none(), "{o:?}");
+    // Let go, the gripper ends where its drive took it, off the part.
+    let after = art.gripper_position().unwrap();
+    assert!(
+        (after - (before + pull * weak.action_length)).length() < 0.02,
+        "{after}"
+    );
+    let held = art.world_from_link(drawer).transform_point(Vec3::ZERO);
+    assert!((after - held).length() > 0.05);
+    let (mut strong, j, drawer) =
+        grasped_drawer(PhysicsConfig::with_profile(PhysicsProfile::Ideal), 0.35);
+    let o = strong.move_gripper(pull, j).unwrap();
+    assert!(
+        !o.suction_lost && strong.grasped_link() == Some(drawer),
+        "{o:?}"
+    );
+}
