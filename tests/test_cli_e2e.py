@@ -4,6 +4,7 @@ import itertools
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -155,6 +156,13 @@ def test_eval_is_identical_for_one_and_two_threads(tmp_path):
         )
         results.append((d / "results.csv").read_text())
         assert (d / "curve.png").stat().st_size > 1000
+        # The curve says what it averages, on whole steps, with its interval.
+        svg = (d / "curve.svg").read_text()
+        about = "mean and 95% interval; train categories (held-out instances) and test categories ("
+        assert about in svg and "8 episodes each)" in svg, svg[:2000]
+        ticks = re.findall(r">\s*([0-9.]+)\s*</text>", svg)
+        assert "2" in ticks and "2.0" not in ticks, ticks
+        assert "<polygon" in svg  # the bands (none drawn where every episode agrees)
         assert "oracle" in (d / "table.txt").read_text()
     assert results[0] == results[1]
     # Success rates carry Wilson intervals: 4 of 4 is not "1.00 +- 0.00".
@@ -476,7 +484,7 @@ def test_sharded_eval_merges_to_the_unsharded_run_byte_for_byte(tmp_path):
     run("eval", "merge", *shards, "--out", str(tmp_path / "merged"))
     whole, merged = tmp_path / "whole", tmp_path / "merged"
     assert _without_wall_time(merged / "results.json") == _without_wall_time(whole / "results.json")
-    for name in ("results.csv", "results.md", "results.tex", "table.txt", "curve.png"):
+    for name in ("results.csv", "results.md", "results.tex", "table.txt", "curve.png", "curve.svg"):
         assert (merged / name).read_bytes() == (whole / name).read_bytes(), name
     assert (merged / "episodes.jsonl").read_bytes() == (whole / "episodes.jsonl").read_bytes()
     n = len((whole / "episodes.jsonl").read_text().splitlines())

@@ -12,7 +12,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 UMPNET = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
-REPORT = ("episodes.jsonl", "results.csv", "results.md", "results.tex", "table.txt", "curve.png")
+REPORT = ("episodes.jsonl", "results.csv", "results.md", "results.tex", "table.txt", "curve.png", "curve.svg")
 
 
 def peak_rss_mb(args: list[str], timeout: float = 600) -> tuple[float, subprocess.CompletedProcess]:

@@ -32,7 +32,7 @@ def test_ray_eval_on_a_local_cluster_equals_the_single_run(tmp_path):
     assert len(re.findall(r"shard \d/3 done", p.stderr)) == 3  # progress, one line per shard
     merged = tmp_path / "ray"
     assert without_wall_time(merged / "results.json") == without_wall_time(whole / "results.json")
-    for name in ("episodes.jsonl", "results.csv", "results.md", "results.tex", "table.txt", "curve.png"):
+    for name in ("episodes.jsonl", "results.csv", "results.md", "results.tex", "table.txt", "curve.png", "curve.svg"):
         assert (merged / name).read_bytes() == (whole / name).read_bytes(), name
     assert len(list((merged / "shards").iterdir())) == 3
     summary = json.loads((merged / "results.json").read_text())["summary"]

@@ -1,10 +1,10 @@
 use crate::{Ctx, images, usage};
-use umpnet_policy::policy::DirectionFilter;
 use anyhow::{Context, Result};
 use image::RgbImage;
 use std::path::PathBuf;
 use umpnet_eval::Policy;
 use umpnet_eval::episode::{EpisodeConfig, HookFrame, Step, run_episode};
+use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::math::Vec3;
 use umpnet_sim::render::{Frame, RendererKind, create_renderer};
@@ -61,8 +61,7 @@ pub struct EpisodeArgs {
 }
 
 pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
-    let resolved =
-        crate::policies::resolve(
+    let resolved = crate::policies::resolve(
         std::slice::from_ref(&a.policy),
         a.model.as_deref(),
         1,

@@ -325,7 +325,11 @@ mod choice_tests {
         all_parse::<umpnet_sim::render::RendererKind>(RENDERERS);
         all_parse::<umpnet_policy::policy::DirectionFilter>(DIRECTION_FILTERS);
         for f in umpnet_policy::policy::DirectionFilter::ALL {
-            assert!(DIRECTION_FILTERS.contains(&f.name()), "{} is not offered", f.name());
+            assert!(
+                DIRECTION_FILTERS.contains(&f.name()),
+                "{} is not offered",
+                f.name()
+            );
         }
         for p in PhysicsProfile::ALL {
             assert!(PHYSICS.contains(&p.name()), "{} is not offered", p.name());

@@ -17,7 +17,7 @@ pub struct MergeArgs {
     /// `umpnet eval --shard K/N --out DIR` run), or the results.json files.
     #[arg(required = true, num_args = 1..)]
     pub shards: Vec<PathBuf>,
-    /// Write results.csv, results.json, table.txt and curve.png here.
+    /// Write results.csv, results.json, table.txt, curve.png and curve.svg here.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Replace the results a previous run left in --out.

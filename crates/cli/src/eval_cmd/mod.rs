@@ -6,7 +6,6 @@ mod report;
 mod stream;
 mod tables;
 
-use umpnet_policy::policy::DirectionFilter;
 use crate::{Ctx, usage};
 use anyhow::{Context, Result};
 use report::{Aggregate, ObjectInfo, Report, RunInfo, Scored};
@@ -16,6 +15,7 @@ use std::path::{Path, PathBuf};
 use stream::{EpisodeWriter, RunState};
 use umpnet_eval::Protocol;
 use umpnet_eval::bench::{BenchConfig, PolicyFactory, Row, Shard, object_rows, stream_benchmark};
+use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
 use umpnet_sim::physics::PhysicsProfile;
@@ -96,7 +96,7 @@ pub struct EvalArgs {
     #[arg(long, value_parser = parse_shard)]
     pub shard: Option<Shard>,
     /// Write episodes.jsonl as episodes finish, then results.json, results.csv,
-    /// table.txt and curve.png, here (a shard: episodes.jsonl and results.json).
+    /// table.txt, curve.png and curve.svg, here (a shard: episodes.jsonl and results.json).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Replace the results a previous run left in --out.

@@ -1,6 +1,6 @@
 //! What an evaluation reports: running aggregates of its episodes (read
 //! back as JSON lines, in canonical order), then the summary, the tables,
-//! results.csv/json, table.txt and curve.png. A single run, a resumed run and
+//! results.csv/json, table.txt and curve.png/svg. A single run, a resumed run and
 //! a merge of shards feed this same code the same lines in the same order,
 //! which is what makes their reports byte-identical. Memory holds one
 //! running statistic per cell and one sum per curve step, whatever the
@@ -130,43 +130,70 @@ fn value(m: &Metrics, metric: &str) -> Option<f64> {
 
 /// The mean curve of one policy, kept as sums: `at[t]` adds the episodes
 /// that reached step t, `ended[l]` the last values of those that ended after
-/// l steps (a shorter episode holds its last value, as a plot of it would).
+/// l steps (a shorter episode holds its last value, as a plot of it would);
+/// the same for the squares, for the interval.
 #[derive(Default)]
 struct CurveSum {
     n: usize,
-    at: Vec<f64>,
-    ended: Vec<f64>,
+    at: Vec<(f64, f64)>,
+    ended: Vec<(f64, f64)>,
+}
+
+/// One policy's curve: per step, the mean over its episodes and the
+/// half-width of the mean's 95% interval (normal approximation).
+pub struct Curve {
+    pub policy: String,
+    pub episodes: usize,
+    pub mean: Vec<f64>,
+    pub half: Vec<f64>,
 }
 
 impl CurveSum {
     fn push(&mut self, series: &[f32]) {
         self.n += 1;
         if self.at.len() < series.len() {
-            self.at.resize(series.len(), 0.0);
+            self.at.resize(series.len(), (0.0, 0.0));
         }
         for (sum, v) in self.at.iter_mut().zip(series) {
-            *sum += f64::from(*v);
+            let v = f64::from(*v);
+            sum.0 += v;
+            sum.1 += v * v;
         }
         if let Some(last) = series.last() {
             if self.ended.len() <= series.len() {
-                self.ended.resize(series.len() + 1, 0.0);
+                self.ended.resize(series.len() + 1, (0.0, 0.0));
             }
             if let Some(e) = self.ended.get_mut(series.len()) {
-                *e += f64::from(*last);
+                let v = f64::from(*last);
+                e.0 += v;
+                e.1 += v * v;
             }
         }
     }
 
-    fn mean(&self) -> Vec<f64> {
-        let mut held = 0.0;
-        self.at
-            .iter()
-            .enumerate()
-            .map(|(t, sum)| {
-                held += self.ended.get(t).copied().unwrap_or(0.0);
-                (sum + held) / self.n.max(1) as f64
-            })
-            .collect()
+    fn curve(&self, policy: &str) -> Curve {
+        let n = self.n.max(1) as f64;
+        let mut held = (0.0, 0.0);
+        let (mut mean, mut half) = (Vec::new(), Vec::new());
+        for (t, sum) in self.at.iter().enumerate() {
+            let e = self.ended.get(t).copied().unwrap_or((0.0, 0.0));
+            held = (held.0 + e.0, held.1 + e.1);
+            let (s, s2) = (sum.0 + held.0, sum.1 + held.1);
+            let m = s / n;
+            let var = if self.n > 1 {
+                ((s2 - n * m * m) / (n - 1.0)).max(0.0)
+            } else {
+                0.0
+            };
+            mean.push(m);
+            half.push(1.96 * (var / n).sqrt());
+        }
+        Curve {
+            policy: policy.to_owned(),
+            episodes: self.n,
+            mean,
+            half,
+        }
     }
 }
 
@@ -226,12 +253,12 @@ impl Aggregate {
     }
 
     /// Each listed policy's mean curve (empty for a policy without episodes).
-    pub fn mean_curves(&self, policies: &[String]) -> Vec<(String, Vec<f64>)> {
+    pub fn mean_curves(&self, policies: &[String]) -> Vec<Curve> {
         policies
             .iter()
-            .map(|p| {
-                let mean = self.curves.get(p).map(CurveSum::mean).unwrap_or_default();
-                (p.clone(), mean)
+            .map(|p| match self.curves.get(p) {
+                Some(c) => c.curve(p),
+                None => CurveSum::default().curve(p),
             })
             .collect()
     }
@@ -286,11 +313,12 @@ impl Report {
         "results.tex",
         "table.txt",
         "curve.png",
+        "curve.svg",
     ];
 
     /// results.json always (the summary, and the episodes file it stands
     /// for); a whole evaluation also gets results.csv, results.md,
-    /// results.tex, table.txt and curve.png (a shard's share of the tables
+    /// results.tex, table.txt and curve.png/svg (a shard's share of the tables
     /// would mislead). Each file is written beside and renamed, so a crash
     /// never leaves a half-written one in place of a good one.
     pub fn write(&self, out: &Path) -> Result<Vec<&'static str>> {
@@ -334,8 +362,14 @@ impl Report {
             written.push(name);
         }
         let curves = self.agg.mean_curves(&self.run.policies);
-        match crate::eval_cmd::plot::plot_curves(self.run.task, &curves, &out.join("curve.png")) {
-            Ok(()) => written.push("curve.png"),
+        let splits: Vec<&str> = tables::splits_of(&rows);
+        let about = format!(
+            "{} ({})",
+            splits.join(" and "),
+            crate::eval_cmd::plot::episodes_text(&curves)
+        );
+        match crate::eval_cmd::plot::plot_curves(self.run.task, &curves, &about, out) {
+            Ok(files) => written.extend(files),
             Err(e) => eprintln!("warning: no plot: {e:#}"),
         }
         Ok(written)

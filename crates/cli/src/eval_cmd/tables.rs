@@ -94,6 +94,15 @@ const SPLITS: [(&str, &str); 3] = [
     ("objects", "objects"),
 ];
 
+/// The labels of the splits `rows` cover, in the tables' order.
+pub fn splits_of(rows: &[RowKey]) -> Vec<&'static str> {
+    SPLITS
+        .iter()
+        .filter(|(_, split)| rows.iter().any(|r| r.split() == *split))
+        .map(|(label, _)| *label)
+        .collect()
+}
+
 /// The rows of one split, in the evaluation's order.
 fn of_split<'a>(rows: &'a [RowKey], split: &str) -> Vec<&'a RowKey> {
     rows.iter().filter(|r| r.split() == split).collect()
