@@ -94,7 +94,7 @@ where
         .x_label_formatter(&|t| t.to_string())
         .draw()?;
     for (k, c) in curves.iter().enumerate() {
-        let color = PALETTE[k % PALETTE.len()];
+        let color = PALETTE.get(k % PALETTE.len()).copied().unwrap_or(BLACK);
         let upper = c.mean.iter().zip(&c.half).enumerate();
         let band: Vec<(i32, f64)> = upper
             .clone()
