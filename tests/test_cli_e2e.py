@@ -348,6 +348,24 @@ def test_learned_policy_episode_and_infer(tmp_path):
     # Millimetres read as metres put the object kilometres away: said, with the scale that fits.
     far = infer("depth_mm.png", "--depth-scale", "1")
     assert "depth_mm.png: the median depth is" in far.stderr and "1e-3 would put it at" in far.stderr, far.stderr
+    # Exploration against the episode's first frame: that frame as its own
+    # reference is what infer does without it; halves of a pair are refused.
+    first = json.loads(infer("depth.npy").stdout)
+    again = json.loads(infer("depth.npy", "--initial", str(tmp_path / "color.png"), "--initial-depth",
+                             str(tmp_path / "depth.npy")).stdout)  # fmt: skip
+    assert (again["pixel"], again["direction"]) == (first["pixel"], first["direction"])
+    for extra, needle in [
+        (("--initial", str(tmp_path / "color.png")), "--initial and --initial-depth go together"),
+        (("--previous", "0,0,0"), "--previous takes x,y,z"),
+        (("--previous", "1,0"), "--previous takes x,y,z"),
+    ]:
+        bad = infer("depth.npy", *extra)
+        assert bad.returncode == 2 and needle in bad.stderr, (extra, bad.stderr)
+    # Under prev90 the next move stays within 90 degrees of the last one.
+    for previous in ([1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]):
+        arg = ",".join(map(str, previous))
+        r = json.loads(infer("depth.npy", "--direction-filter", "prev90", f"--previous={arg}").stdout)
+        assert np.dot(r["direction"], previous) >= 0, (previous, r)
     # Nonsense is refused by name, never clamped or ignored.
     for args, pose_, needle in [
         (("--grasp=99999,99999",), pose, "outside the 96x128 image"),

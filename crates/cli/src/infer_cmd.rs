@@ -35,6 +35,21 @@ pub struct InferArgs {
     /// Depth of the reference image (same format and scale as --depth).
     #[arg(long)]
     pub reference_depth: Option<PathBuf>,
+    /// Exploration: the episode's first colour image, which "forward" (AoT)
+    /// is judged against; without it, the current frame is its own reference.
+    #[arg(long, conflicts_with = "reference")]
+    pub initial: Option<PathBuf>,
+    /// Depth of the first image (same format and scale as --depth).
+    #[arg(long)]
+    pub initial_depth: Option<PathBuf>,
+    /// The direction executed last (x,y,z in the world frame), which
+    /// `--direction-filter prev90` keeps the next one within 90 degrees of.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub previous: Vec<f32>,
+    /// The policy's direction filter instead of its package's: none,
+    /// normal90 or prev90 (exploration only).
+    #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::DirectionFilter>(crate::DIRECTION_FILTERS))]
+    pub direction_filter: Option<umpnet_policy::policy::DirectionFilter>,
     /// Pixel (row,col) the gripper holds; without it the position action is chosen.
     #[arg(long, value_delimiter = ',')]
     pub grasp: Vec<usize>,
@@ -354,7 +369,21 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     };
     let pkg = ModelPackage::load(&model, 1, 1, None)
         .with_context(|| format!("loading {}", model.display()))?;
-    let policy = UmpnetPolicy::new(std::sync::Arc::new(pkg));
+    let mut policy = UmpnetPolicy::new(std::sync::Arc::new(pkg));
+    if let Some(f) = a.direction_filter {
+        policy = policy.with_direction_filter(f);
+    }
+    let previous = match a.previous.as_slice() {
+        [] => None,
+        [x, y, z] if [x, y, z].iter().all(|v| v.is_finite()) && (x * x + y * y + z * z) > 1e-12 => {
+            Some(nalgebra::Vector3::new(*x, *y, *z).normalize())
+        }
+        v => {
+            return Err(usage(format!(
+                "--previous takes x,y,z, a finite non-zero direction, got {v:?}"
+            )));
+        }
+    };
     let (mh, mw) = policy.resolution();
     let full = load_frame(&a.rgb, &a.depth, a, &camera)?;
     if let Some((r, c)) = grasp
@@ -373,6 +402,13 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         )?),
         (None, None) => None,
         _ => return Err(usage("--reference and --reference-depth go together")),
+    };
+    let initial = match (&a.initial, &a.initial_depth) {
+        (Some(r), Some(d)) => Some(build_observation(
+            &resize_nearest(&load_frame(r, d, a, &camera)?.view(), mh, mw)?.view(),
+        )?),
+        (None, None) => None,
+        _ => return Err(usage("--initial and --initial-depth go together")),
     };
     let (sy, sx) = (
         full.height as f32 / mh as f32,
@@ -393,13 +429,13 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     } else {
         Mode::Explore
     };
-    let refv = reference.as_ref().unwrap_or(&obs);
+    let refv = reference.as_ref().or(initial.as_ref()).unwrap_or(&obs);
     let input = DecisionInput {
         observation: obs.view(),
         reference: refv.view(),
         pixel: pixel_small,
         banned: &[],
-        previous: None,
+        previous,
         mode,
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
