@@ -12,6 +12,26 @@ use crate::urdf::{JointKind, ObjectModel};
 use rapier3d::prelude::*;
 use std::sync::Arc;
 
+/// Steps an action may take to settle once its set-point has arrived: a cap
+/// for a gripper that never comes to rest (every measured pull settles
+/// within 10).
+const MAX_SETTLE_STEPS: usize = 60;
+
+/// A gripper that moves less than this in a step has come to rest, m.
+const AT_REST_M: f32 = 2e-4;
+
+/// How far along the action the drive's set-point is after step `i`: one
+/// `per_step` further each step, from the first, up to `length`.
+fn set_point_distance(i: usize, per_step: f32, length: f32) -> f32 {
+    ((i + 1) as f32 * per_step).min(length)
+}
+
+/// An action is over once its set-point has arrived (after `travel` steps)
+/// and the gripper moved less than [`AT_REST_M`] in the last step.
+fn action_over(i: usize, travel: usize, moved: f32) -> bool {
+    i + 1 >= travel && moved < AT_REST_M
+}
+
 #[derive(Clone)]
 struct Gripper {
     body: RigidBodyHandle,
@@ -400,12 +420,11 @@ impl IdealArticulation {
         let joint_before = self.joint_position(joint);
         let per_step = self.config.action_speed * self.config.dt;
         let travel_steps = (self.config.action_length / per_step).ceil() as usize;
-        let max_settle = 60;
         let mut suction_lost = self.gripper.as_ref().is_some_and(|g| g.suction.is_none());
         let mut steps = 0;
         let mut last = start;
-        for i in 0..travel_steps + max_settle {
-            let s = ((i + 1) as f32 * per_step).min(self.config.action_length);
+        for i in 0..travel_steps + MAX_SETTLE_STEPS {
+            let s = set_point_distance(i, per_step, self.config.action_length);
             if let Some(t) = self.bodies.get_mut(target) {
                 t.set_next_kinematic_translation(start + direction * s);
             }
@@ -417,8 +436,7 @@ impl IdealArticulation {
             let now = self.bodies[body].translation();
             let moved = (now - last).length();
             last = now;
-            // Stopped: the set-point has arrived and the gripper barely moves.
-            if i + 1 >= travel_steps && moved < 2e-4 {
+            if action_over(i, travel_steps, moved) {
                 break;
             }
         }
@@ -467,5 +485,31 @@ impl IdealArticulation {
             return true;
         }
         false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{AT_REST_M, action_over, set_point_distance};
+
+    #[test]
+    fn the_set_point_advances_one_step_at_a_time_from_the_first_and_stops_at_the_end() {
+        let (per_step, length) = (0.01, 0.18);
+        let at = |i| set_point_distance(i, per_step, length);
+        for (i, expected) in [(0, 0.01), (8, 0.09), (16, 0.17), (17, 0.18), (400, 0.18)] {
+            assert!((at(i) - expected).abs() < 1e-6, "step {i}: {}", at(i));
+        }
+        assert!(at(400) <= length, "never past the end: {}", at(400));
+    }
+
+    #[test]
+    fn an_action_ends_only_at_rest_after_the_set_point_arrived() {
+        let travel = 18;
+        // Still during the travel: the set-point is on its way.
+        assert!(!action_over(16, travel, 0.0));
+        assert!(action_over(17, travel, 0.0));
+        assert!(action_over(30, travel, AT_REST_M * 0.99));
+        assert!(!action_over(30, travel, AT_REST_M));
+        assert!(!action_over(30, travel, 0.01));
     }
 }
