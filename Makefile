@@ -126,7 +126,7 @@ test-python: build py fixture
 
 # cargo-mutants groups whose committed record (docs/mutants/) must be of the
 # current sources and agree with docs/harmless-mutants.txt.
-MUTANT_RECORDS ?= sim eval
+MUTANT_RECORDS ?= sim eval ideal
 
 # The audit's deliberate bugs (and every hand-made mutant with --all below)
 # must fail the tests; the cargo-mutants records must be current.
