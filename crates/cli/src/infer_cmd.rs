@@ -396,20 +396,18 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     }
     let small = resize_nearest(&full.view(), mh, mw)?;
     let obs = build_observation(&small.view())?;
-    let reference = match (&a.reference, &a.reference_depth) {
-        (Some(r), Some(d)) => Some(build_observation(
-            &resize_nearest(&load_frame(r, d, a, &camera)?.view(), mh, mw)?.view(),
-        )?),
-        (None, None) => None,
-        _ => return Err(usage("--reference and --reference-depth go together")),
-    };
-    let initial = match (&a.initial, &a.initial_depth) {
-        (Some(r), Some(d)) => Some(build_observation(
-            &resize_nearest(&load_frame(r, d, a, &camera)?.view(), mh, mw)?.view(),
-        )?),
-        (None, None) => None,
-        _ => return Err(usage("--initial and --initial-depth go together")),
-    };
+    // A second frame (the goal, or the episode's first) comes as a colour
+    // image and its depth, both or neither, seen as the policy sees frames.
+    let other_frame =
+        |rgb: &Option<PathBuf>, depth: &Option<PathBuf>, flag: &str| match (rgb, depth) {
+            (Some(r), Some(d)) => Ok(Some(build_observation(
+                &resize_nearest(&load_frame(r, d, a, &camera)?.view(), mh, mw)?.view(),
+            )?)),
+            (None, None) => Ok(None),
+            _ => Err(usage(format!("--{flag} and --{flag}-depth go together"))),
+        };
+    let reference = other_frame(&a.reference, &a.reference_depth, "reference")?;
+    let initial = other_frame(&a.initial, &a.initial_depth, "initial")?;
     let (sy, sx) = (
         full.height as f32 / mh as f32,
         full.width as f32 / mw as f32,
