@@ -10,8 +10,9 @@ use pyo3::types::PyDict;
 use std::path::PathBuf;
 use std::sync::Arc;
 use umpnet_sim::math::{Pose3, Quat, Vec3};
+use umpnet_sim::model::ObjectModel;
 use umpnet_sim::physics::{Articulation as SimArticulation, PhysicsConfig, PhysicsProfile};
-use umpnet_sim::urdf::{ObjectModel, load_urdf};
+use umpnet_sim::urdf::load_urdf;
 
 fn value_err(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())

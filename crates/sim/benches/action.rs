@@ -11,9 +11,9 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::sync::Arc;
 use umpnet_sim::math::{Pose3, Vec3};
+use umpnet_sim::model::JointKind;
 use umpnet_sim::objects::{Category, generate};
 use umpnet_sim::physics::{Articulation, PhysicsConfig};
-use umpnet_sim::urdf::JointKind;
 
 fn bench_category(c: &mut Criterion, category: Category, kind: JointKind, label: &str) {
     let model = Arc::new(

@@ -4,12 +4,12 @@
 use crate::camera::Camera;
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Pose3, Quat, Vec3};
+use crate::model::{JointKind, ObjectModel};
 use crate::physics::{Articulation, PhysicsConfig};
 use crate::render::{
     Frame, RenderMesh, RenderRequest, Renderer, Segment, gripper_mesh, plane_mesh,
 };
 use crate::scene::{Scene, Task};
-use crate::urdf::{JointKind, ObjectModel};
 use std::sync::Arc;
 
 pub use crate::labels::{DELTA, StepLabels, TrainLabels, labels};

@@ -6,9 +6,9 @@
 use crate::env::{OBJECT_ID, SimEnv};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3};
+use crate::model::JointKind;
 use crate::physics::kinematics::forward_kinematics;
 use crate::render::{Frame, Segment};
-use crate::urdf::JointKind;
 
 /// Per-pixel articulation labels, row-major like the frame they label.
 #[derive(Clone, Debug, PartialEq)]

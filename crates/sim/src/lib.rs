@@ -1,12 +1,13 @@
 //! umpnet-sim: the articulated-object simulator behind umpnet.
 //!
-//! URDF (PartNet-Mobility or generated) -> [`urdf::ObjectModel`] ->
+//! URDF (PartNet-Mobility or generated) -> [`model::ObjectModel`] ->
 //! [`physics::Articulation`] (the suction gripper on the `reference` solver,
 //! by default, or on a rapier3d multibody with the `ideal` profile).
 pub mod error;
 pub mod fsio;
 pub mod math;
 pub mod mesh;
+pub mod model;
 pub mod physics;
 pub mod urdf;
 

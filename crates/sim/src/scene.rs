@@ -2,9 +2,10 @@
 //! replays bit-identically.
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Quat, Vec3};
+use crate::model::ObjectModel;
 use crate::objects::{self, Category};
 use crate::physics::PhysicsProfile;
-use crate::urdf::{ObjectModel, load_urdf};
+use crate::urdf::load_urdf;
 use rand::Rng;
 use std::path::PathBuf;
 

@@ -54,7 +54,7 @@ BENCHMARK_FRICTION = 0.5
 # Largest extent (m) of an imported object in the scene: the median largest
 # extent of the generated objects at scene scale (docs/objects.md).
 DEFAULT_SIZE = 0.8
-# What the loader accepts (crates/sim/src/urdf.rs): limits within this many m or rad.
+# What the loader accepts (crates/sim/src/urdf/): limits within this many m or rad.
 _MAX_LIMIT = 1000.0
 _F32_MAX = float(np.finfo(np.float32).max)
 _MIN_MESH_SCALE, _MAX_MESH_SCALE = 1e-6, 1e6

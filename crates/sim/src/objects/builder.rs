@@ -6,7 +6,7 @@
 )]
 use crate::math::{Pose3, Vec3};
 use crate::mesh::TriMesh;
-use crate::urdf::JointKind;
+use crate::model::JointKind;
 use std::fmt::Write as _;
 
 pub(crate) struct PartLink {

@@ -7,7 +7,7 @@
 use super::Category;
 use super::builder::Parts;
 use crate::math::Vec3;
-use crate::urdf::JointKind::{Prismatic, Revolute};
+use crate::model::JointKind::{Prismatic, Revolute};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 

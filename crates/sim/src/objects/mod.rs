@@ -5,7 +5,8 @@ mod families;
 
 use crate::error::{Result, SimError};
 use crate::mesh::TriMesh;
-use crate::urdf::{ObjectModel, parse_urdf_with};
+use crate::model::ObjectModel;
+use crate::urdf::parse_urdf_with;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::collections::HashMap;

@@ -5,7 +5,7 @@
     reason = "joint and link indices come from the validated model"
 )]
 use crate::math::{Pose3, Quat};
-use crate::urdf::{JointKind, ObjectModel};
+use crate::model::{JointKind, ObjectModel};
 
 /// The child frame's pose in the joint frame at joint value `q`.
 pub(crate) fn joint_motion(kind: JointKind, axis_in_joint: crate::math::Vec3, q: f32) -> Pose3 {

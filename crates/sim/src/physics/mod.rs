@@ -24,7 +24,7 @@ mod reference;
 use crate::error::Result;
 use crate::math::{Pose3, Vec3};
 use crate::mesh::TriMesh;
-use crate::urdf::ObjectModel;
+use crate::model::ObjectModel;
 use std::sync::Arc;
 
 pub use reference::ReferenceParams;

@@ -34,7 +34,7 @@ use super::pgs::{MAX_DOFS, RowSpace, invert, solve};
 use super::{ActionOutcome, PhysicsConfig};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3};
-use crate::urdf::{JointKind, ObjectModel};
+use crate::model::{JointKind, ObjectModel};
 use std::sync::Arc;
 
 /// Constants of the reference simulator (defaults: the paper's code).
