@@ -732,6 +732,50 @@ def test_inputs_that_are_not_regular_files_or_lie_about_their_size_are_refused_u
     assert len(out["steps"]) == 2
 
 
+def test_infer_refuses_cameras_frames_and_depths_that_do_not_fit_by_name(tmp_path):
+    frame = tmp_path / "frame"
+    run("render", "--category", "Microwave", "--seed", "1", "--resolution", "96x128", "--out", str(frame))
+    other = tmp_path / "other"
+    run("render", "--category", "Microwave", "--seed", "1", "--resolution", "48x64", "--out", str(other))
+    good = {"--rgb": frame / "color.png", "--depth": frame / "depth.npy", "--camera": frame / "camera.json"}
+
+    def infer(*extra, **swap):
+        paths = good | {f"--{k}": v for k, v in swap.items()}
+        return run("infer", *[str(x) for kv in paths.items() for x in kv], *extra, check=False)
+
+    assert infer().returncode == 0
+    cam = json.loads(good["--camera"].read_text())
+
+    def camera(name, **change):
+        path = tmp_path / name
+        path.write_text(json.dumps(cam | change))
+        return path
+
+    # A camera.json written for another image size: its intrinsics would not fit.
+    p = infer(camera=camera("small.json", height=48, width=64))
+    assert p.returncode == 2 and "small.json was written for 48x64 images" in p.stderr and "96x128" in p.stderr, p.stderr
+    # Intrinsics or a translation of 1e30 parse, and describe no camera.
+    k = cam["intrinsics"]
+    p = infer(camera=camera("focal.json", intrinsics=k | {"fx": 1e30}))
+    assert p.returncode == 2 and "focal.json" in p.stderr and "fx and fy must be in (0, 1e6]" in p.stderr, p.stderr
+    far = [row[:3] + [1e30 if i == 0 else row[3]] for i, row in enumerate(cam["world_from_camera"])]
+    p = infer(camera=camera("far.json", world_from_camera=far))
+    assert p.returncode == 2 and "far.json" in p.stderr and "more than 1000 m from the origin" in p.stderr, p.stderr
+    # A reference frame from another camera size.
+    p = infer("--reference", other / "color.png", "--reference-depth", other / "depth.npy")
+    assert p.returncode == 2 and "--reference" in p.stderr and "is 48x64, but the current frame" in p.stderr, p.stderr
+    # Depth that no camera measures is named with its file, not blamed on the model.
+    depth = np.load(good["--depth"])
+    huge = tmp_path / "huge.npy"
+    np.save(huge, np.where(depth > 0, 1e30, 0).astype(np.float32))
+    p = infer(depth=huge)
+    assert p.returncode == 2 and "huge.npy: depth 1e30 m at pixel" in p.stderr, p.stderr
+    empty = tmp_path / "empty.npy"
+    np.save(empty, np.zeros_like(depth))
+    p = infer(depth=empty)
+    assert p.returncode == 2 and "empty.npy: no pixel has a depth" in p.stderr, p.stderr
+
+
 def _poisoned(fixture: str, dest: Path, file: str, output: str, value: float) -> Path:
     """A copy of the fixture package whose `file` gives `output` times `value`."""
     import shutil

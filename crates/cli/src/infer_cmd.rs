@@ -234,6 +234,38 @@ fn implausible_depth(depth_m: &[f32], scale: f32, file: &Path) -> Option<String>
     ))
 }
 
+/// Farthest depth (m) a frame may hold. 16-bit millimetres read as metres
+/// (up to 65,535 m) stay below it, so the unit warning can name the fix;
+/// past it the observation's coordinates are no longer a scene.
+const MAX_DEPTH_M: f32 = 1e5;
+
+/// Depth in metres as the policy will read it: 0 or a non-finite value means
+/// "no return" (what depth cameras write there); a negative value or one
+/// past [`MAX_DEPTH_M`] is an error naming the file and the pixel, and so is
+/// a frame with no depth at all.
+fn check_depth_values(depth_m: &[f32], width: usize, file: &Path) -> Result<()> {
+    let width = width.max(1);
+    if let Some((i, v)) = depth_m
+        .iter()
+        .enumerate()
+        .find(|(_, v)| v.is_finite() && !(0.0..=MAX_DEPTH_M).contains(*v))
+    {
+        return Err(usage(format!(
+            "{}: depth {v:e} m at pixel ({}, {}) (row, col); depth must be 0 (no return) or up to {MAX_DEPTH_M} m — check --depth-scale",
+            file.display(),
+            i / width,
+            i % width
+        )));
+    }
+    if !depth_m.iter().any(|v| v.is_finite() && *v > 0.0) {
+        return Err(usage(format!(
+            "{}: no pixel has a depth (every value is 0 or not a number); the policy needs the object's surface in view",
+            file.display()
+        )));
+    }
+    Ok(())
+}
+
 fn load_frame(rgb: &Path, depth: &Path, a: &InferArgs, camera: &Camera) -> Result<OwnedFrame> {
     input(rgb, MAX_IMAGE_BYTES)?;
     let img = image::open(rgb)
@@ -253,6 +285,7 @@ fn load_frame(rgb: &Path, depth: &Path, a: &InferArgs, camera: &Camera) -> Resul
             depth.display()
         )));
     }
+    check_depth_values(&d, w, depth)?;
     if let Some(warning) = implausible_depth(&d, a.depth_scale, depth) {
         eprintln!("warning: {warning}");
     }
@@ -270,13 +303,23 @@ fn load_frame(rgb: &Path, depth: &Path, a: &InferArgs, camera: &Camera) -> Resul
 struct Camera {
     intrinsics: [f32; 4],
     world_from_camera: [[f32; 4]; 4],
+    /// The image size a camera.json was written for, when it says.
+    size: Option<(usize, usize)>,
+    /// Where the camera came from, for messages.
+    source: String,
 }
+
+/// Largest focal length or principal-point coordinate (pixels): a camera
+/// with more is a unit mistake, not a lens.
+const MAX_INTRINSIC_PX: f32 = 1e6;
 
 #[derive(serde::Deserialize)]
 struct CameraFile {
     intrinsics: FileIntrinsics,
     /// Rows of the 4x4 transform.
     world_from_camera: [[f32; 4]; 4],
+    height: Option<usize>,
+    width: Option<usize>,
 }
 
 #[derive(serde::Deserialize)]
@@ -289,7 +332,7 @@ struct FileIntrinsics {
 
 impl Camera {
     fn from_args(a: &InferArgs) -> Result<Camera> {
-        let (intrinsics, pose) = match &a.camera {
+        let (intrinsics, pose, size, source) = match &a.camera {
             Some(path) => {
                 let text =
                     umpnet_sim::fsio::read_text(path, 1 << 20).map_err(|e| usage(e.to_string()))?;
@@ -303,9 +346,16 @@ impl Camera {
                 (
                     vec![k.fx, k.fy, k.cx, k.cy],
                     f.world_from_camera.iter().flatten().copied().collect(),
+                    f.height.zip(f.width),
+                    path.display().to_string(),
                 )
             }
-            None => (a.intrinsics.clone(), a.camera_pose.clone()),
+            None => (
+                a.intrinsics.clone(),
+                a.camera_pose.clone(),
+                None,
+                "--intrinsics/--camera-pose".to_owned(),
+            ),
         };
         let (Ok(intrinsics), Ok(pose)) = (
             <[f32; 4]>::try_from(intrinsics.as_slice()),
@@ -316,15 +366,11 @@ impl Camera {
             ));
         };
         let [fx, fy, cx, cy] = intrinsics;
-        if !(fx.is_finite()
-            && fy.is_finite()
-            && fx > 0.0
-            && fy > 0.0
-            && cx.is_finite()
-            && cy.is_finite())
-        {
+        let focal = |f: f32| f.is_finite() && f > 0.0 && f <= MAX_INTRINSIC_PX;
+        let centre = |c: f32| c.is_finite() && c.abs() <= MAX_INTRINSIC_PX;
+        if !(focal(fx) && focal(fy) && centre(cx) && centre(cy)) {
             return Err(usage(format!(
-                "--intrinsics {intrinsics:?}: fx and fy must be positive and all four finite"
+                "{source}: intrinsics {intrinsics:?}: fx and fy must be in (0, {MAX_INTRINSIC_PX:e}] pixels and cx, cy within ±{MAX_INTRINSIC_PX:e}"
             )));
         }
         let m = nalgebra::Matrix4::from_row_slice(&pose);
@@ -338,7 +384,14 @@ impl Camera {
             && m.fixed_view::<1, 4>(3, 0) == nalgebra::RowVector4::new(0.0, 0.0, 0.0, 1.0);
         if !rigid {
             return Err(usage(format!(
-                "--camera-pose {pose:?} is not a rigid transform: expected a rotation (orthonormal, determinant 1), a translation, and a last row of 0,0,0,1"
+                "{source}: camera pose {pose:?} is not a rigid transform: expected a rotation (orthonormal, determinant 1), a translation, and a last row of 0,0,0,1"
+            )));
+        }
+        let limit = umpnet_sim::urdf::MAX_COORDINATE;
+        if m.fixed_view::<3, 1>(0, 3).iter().any(|t| t.abs() > limit) {
+            return Err(usage(format!(
+                "{source}: the camera's translation {:?} is more than {limit} m from the origin",
+                [pose[3], pose[7], pose[11]]
             )));
         }
         let mut world_from_camera = [[0.0f32; 4]; 4];
@@ -348,6 +401,8 @@ impl Camera {
         Ok(Camera {
             intrinsics,
             world_from_camera,
+            size,
+            source,
         })
     }
 }
@@ -386,6 +441,17 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     };
     let (mh, mw) = policy.resolution();
     let full = load_frame(&a.rgb, &a.depth, a, &camera)?;
+    if let Some((h, w)) = camera.size
+        && (h, w) != (full.height, full.width)
+    {
+        return Err(usage(format!(
+            "{} was written for {h}x{w} images (HEIGHTxWIDTH), but {} is {}x{}; its intrinsics would not fit",
+            camera.source,
+            a.rgb.display(),
+            full.height,
+            full.width
+        )));
+    }
     if let Some((r, c)) = grasp
         && (r >= full.height || c >= full.width)
     {
@@ -398,14 +464,29 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     let obs = build_observation(&small.view())?;
     // A second frame (the goal, or the episode's first) comes as a colour
     // image and its depth, both or neither, seen as the policy sees frames.
-    let other_frame =
-        |rgb: &Option<PathBuf>, depth: &Option<PathBuf>, flag: &str| match (rgb, depth) {
-            (Some(r), Some(d)) => Ok(Some(build_observation(
-                &resize_nearest(&load_frame(r, d, a, &camera)?.view(), mh, mw)?.view(),
-            )?)),
-            (None, None) => Ok(None),
-            _ => Err(usage(format!("--{flag} and --{flag}-depth go together"))),
-        };
+    let other_frame = |rgb: &Option<PathBuf>, depth: &Option<PathBuf>, flag: &str| match (
+        rgb, depth,
+    ) {
+        (Some(r), Some(d)) => {
+            let frame = load_frame(r, d, a, &camera)?;
+            if (frame.height, frame.width) != (full.height, full.width) {
+                return Err(usage(format!(
+                    "--{flag} {} is {}x{}, but the current frame {} is {}x{}: both come from the same camera",
+                    r.display(),
+                    frame.height,
+                    frame.width,
+                    a.rgb.display(),
+                    full.height,
+                    full.width
+                )));
+            }
+            Ok(Some(build_observation(
+                &resize_nearest(&frame.view(), mh, mw)?.view(),
+            )?))
+        }
+        (None, None) => Ok(None),
+        _ => Err(usage(format!("--{flag} and --{flag}-depth go together"))),
+    };
     let reference = other_frame(&a.reference, &a.reference_depth, "reference")?;
     let initial = other_frame(&a.initial, &a.initial_depth, "initial")?;
     let (sy, sx) = (

@@ -149,7 +149,17 @@ impl Policy for OraclePolicy {
                 best = Some((score, i));
             }
         }
-        let (_, i) = best.ok_or_else(|| EvalError::Episode("no movable link in view".into()))?;
+        let (_, i) = best.ok_or_else(|| {
+            EvalError::Episode(format!(
+                "the oracle's grasp: no pixel of a movable part of {} is in view of the camera{}",
+                env.model().source.display(),
+                if env.scene().task == Task::Goal {
+                    " (for a goal, of the part the goal moves)"
+                } else {
+                    ""
+                }
+            ))
+        })?;
         Ok(((i as u32) / f.width, (i as u32) % f.width))
     }
     fn direction(

@@ -94,7 +94,7 @@ impl Categories {
 pub(crate) fn make_config(
     category: Option<Categories>,
     split: &str,
-    resolution: (u32, u32),
+    resolution: (i64, i64),
     task: &str,
     object_dir: Option<PathBuf>,
     renderer: &str,
@@ -113,16 +113,22 @@ pub(crate) fn make_config(
             )));
         }
     };
-    if !(8..=4096).contains(&resolution.0) || !(8..=4096).contains(&resolution.1) {
+    // Taken as signed so that a negative size is this message, not an OverflowError.
+    let (Ok(height), Ok(width)) = (u32::try_from(resolution.0), u32::try_from(resolution.1)) else {
         return Err(PyValueError::new_err(format!(
-            "resolution {resolution:?}: height and width must be in 8..=4096"
+            "resolution {resolution:?}: expected (height, width), each in 8..=4096"
+        )));
+    };
+    if !(8..=4096).contains(&height) || !(8..=4096).contains(&width) {
+        return Err(PyValueError::new_err(format!(
+            "resolution {resolution:?}: expected (height, width), each in 8..=4096"
         )));
     }
     let mut cfg = EnvConfig::new(task, split);
     cfg.physics = physics
         .parse()
         .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
-    cfg.resolution = resolution;
+    cfg.resolution = (height, width);
     cfg.dataset_seed = dataset_seed;
     cfg.renderer = renderer
         .parse()
@@ -242,7 +248,7 @@ impl Env {
         category: Option<Categories>,
         split: &str,
         seed: u64,
-        resolution: (u32, u32),
+        resolution: (i64, i64),
         task: &str,
         object_dir: Option<PathBuf>,
         renderer: &str,
@@ -260,7 +266,7 @@ impl Env {
             dataset_seed,
             physics,
         )?;
-        let (h, w) = (resolution.0 as usize, resolution.1 as usize);
+        let (h, w) = (cfg.resolution.0 as usize, cfg.resolution.1 as usize);
         Ok(Self {
             inner: TrainEnv::new(cfg, seed).map_err(eval_err)?,
             buffers: buffers::ObsBuffers::new(py, None, h, w)?,
@@ -478,11 +484,24 @@ impl Policy {
         let imgs: Vec<ndarray::Array3<f32>> = (0..b).map(|i| slice3(&images, i)).collect();
         let refs: Vec<ndarray::Array3<f32>> = (0..b).map(|i| slice3(&references, i)).collect();
         let px = pixels.as_array();
+        let (h, w) = (images.shape()[1], images.shape()[2]);
+        let mut grasp_pixels = Vec::with_capacity(b);
+        for i in 0..b {
+            let (row, col) = (px[[i, 0]], px[[i, 1]]);
+            match (usize::try_from(row), usize::try_from(col)) {
+                (Ok(r), Ok(c)) if r < h && c < w => grasp_pixels.push((r, c)),
+                _ => {
+                    return Err(PyValueError::new_err(format!(
+                        "pixels[{i}] = ({row}, {col}) is outside the {h} x {w} image: expected 0 <= row < {h} and 0 <= col < {w}"
+                    )));
+                }
+            }
+        }
         let inputs: Vec<DecisionInput> = (0..b)
             .map(|i| DecisionInput {
                 observation: imgs[i].view(),
                 reference: refs[i].view(),
-                pixel: (px[[i, 0]].max(0) as usize, px[[i, 1]].max(0) as usize),
+                pixel: grasp_pixels[i],
                 banned: &[],
                 previous: None,
                 mode,

@@ -75,26 +75,50 @@ pub(crate) fn directions(a: &PyReadonlyArray3<'_, f32>, n: usize) -> PyResult<Ve
     Ok(out)
 }
 
+/// Directions probed between two checks for Ctrl-C: a few hundred
+/// milliseconds of work at most, so an interrupt is answered promptly.
+const PROBES_PER_SIGNAL_CHECK: usize = 32;
+
 /// Probes every environment (in parallel, without the GIL); an environment
-/// without a grasp gives None.
+/// without a grasp gives None. Every [`PROBES_PER_SIGNAL_CHECK`] directions
+/// the GIL is taken back to ask Python for pending signals, so a KeyboardInterrupt
+/// stops a long call.
 pub(crate) fn probe_all(
     py: Python<'_>,
     envs: &[TrainEnv],
     dirs: &[Vec<[f32; 3]>],
 ) -> PyResult<Vec<Option<Vec<StepLabels>>>> {
-    py.detach(|| {
-        envs.par_iter()
-            .zip(dirs)
-            .map(|(e, d)| {
-                if e.grasped_joint().is_some() {
-                    e.probe_directions(d).map(Some)
-                } else {
-                    Ok(None)
-                }
+    let k = dirs.iter().map(Vec::len).max().unwrap_or(0);
+    let mut out: Vec<Option<Vec<StepLabels>>> = envs
+        .iter()
+        .map(|e| e.grasped_joint().map(|_| Vec::new()))
+        .collect();
+    let mut start = 0;
+    loop {
+        let end = (start + PROBES_PER_SIGNAL_CHECK).min(k);
+        let chunk = py
+            .detach(|| {
+                envs.par_iter()
+                    .zip(dirs)
+                    .zip(&out)
+                    .map(|((e, d), o)| match (o, d.get(start..end.min(d.len()))) {
+                        (Some(_), Some(part)) => e.probe_directions(part).map(Some),
+                        _ => Ok(None),
+                    })
+                    .collect::<Result<Vec<_>, _>>()
             })
-            .collect::<Result<Vec<_>, _>>()
-    })
-    .map_err(crate::eval_err)
+            .map_err(crate::eval_err)?;
+        for (o, c) in out.iter_mut().zip(chunk) {
+            if let (Some(o), Some(c)) = (o.as_mut(), c) {
+                o.extend(c);
+            }
+        }
+        py.check_signals()?;
+        if end >= k {
+            return Ok(out);
+        }
+        start = end;
+    }
 }
 
 /// Labels as (n, k) arrays: r_dist, aot, moved, joint_after; `active` (n,)

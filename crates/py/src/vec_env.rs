@@ -47,11 +47,11 @@ impl VecEnv {
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
-        n: usize,
+        n: i64,
         category: Option<Categories>,
         split: &str,
         seed: u64,
-        resolution: (u32, u32),
+        resolution: (i64, i64),
         task: &str,
         object_dir: Option<PathBuf>,
         renderer: &str,
@@ -60,11 +60,14 @@ impl VecEnv {
         copy: bool,
         batch_render: bool,
     ) -> PyResult<Self> {
-        if !(1..=MAX_ENVS).contains(&n) {
-            return Err(PyValueError::new_err(format!(
-                "n = {n}: expected 1 to {MAX_ENVS} environments"
-            )));
-        }
+        let n = match usize::try_from(n) {
+            Ok(n) if (1..=MAX_ENVS).contains(&n) => n,
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "n = {n}: expected 1 to {MAX_ENVS} environments"
+                )));
+            }
+        };
         let cfg = make_config(
             category,
             split,
@@ -79,7 +82,7 @@ impl VecEnv {
             .map(|i| TrainEnv::new(cfg.clone(), seed + i as u64))
             .collect::<Result<Vec<_>, _>>()
             .map_err(eval_err)?;
-        let (h, w) = (resolution.0 as usize, resolution.1 as usize);
+        let (h, w) = (cfg.resolution.0 as usize, cfg.resolution.1 as usize);
         Ok(Self {
             envs,
             buffers: buffers::ObsBuffers::new(py, Some(n), h, w)?,

@@ -423,6 +423,61 @@ def test_absurd_sizes_are_value_errors_not_crashes():
         umpnet.VecEnv(0)
     with pytest.raises(ValueError, match="threads = 100000"):
         umpnet.Policy(str(Path(__file__).resolve().parents[3] / "models" / "umpnet-small"), threads=100000)
+    # Negative sizes name the argument; they used to be a bare OverflowError.
+    with pytest.raises(ValueError, match=r"resolution \(-96, 128\): expected \(height, width\)"):
+        umpnet.Env(resolution=(-96, 128))
+    with pytest.raises(ValueError, match="n = -1"):
+        umpnet.VecEnv(-1)
+
+
+def test_magnitudes_that_mean_nothing_are_refused_by_name():
+    cabinet = str(Path(__file__).resolve().parents[3] / "crates" / "sim" / "tests" / "data" / "cabinet.urdf")
+    art = umpnet.Articulation(cabinet, position=(0.0, -0.5, 0.0))
+    # A joint value past its limit was clamped without a word.
+    with pytest.raises(ValueError, match=r"joint `drawer_slide` = 1000000000000000000000000000000 is outside its limits \[0, 0.4\] \(m\)"):
+        art.set_joints({"drawer_slide": 1e30})
+    art.set_joints({"drawer_slide": 0.2})
+    assert art.joint("drawer_slide") == pytest.approx(0.2)
+    # A grasp 1e30 m from the part used to succeed.
+    with pytest.raises(ValueError, match=r"m from the link's geometry; suction holds a surface within 0.05 m"):
+        art.grasp([0.0, 1e30, 0.25], "drawer")
+    art.set_joints({"drawer_slide": 0.0})
+    art.grasp([0.0, -0.76, 0.25], "drawer")
+    assert art.move_gripper([0.0, -1.0, 0.0], "drawer_slide")["joint_after"] > 0.1
+
+
+def test_direction_batch_refuses_pixels_outside_the_image():
+    pol = umpnet.Policy(str(Path(__file__).resolve().parents[3] / "models" / "umpnet-small"))
+    h, w = pol.resolution
+    images = np.zeros((1, h, w, 10), np.float32)
+    images[..., 9] = 1.0
+    for bad in [(-5, 10), (10, 10**6), (h, 0)]:
+        with pytest.raises(ValueError, match=rf"pixels\[0\] = \({bad[0]}, {bad[1]}\) is outside the {h} x {w} image"):
+            pol.direction_batch(images, images.copy(), np.array([bad], np.int64))
+    assert len(pol.direction_batch(images, images.copy(), np.array([[h - 1, w - 1]], np.int64))) == 1
+
+
+def test_a_long_probe_stops_on_ctrl_c():
+    import _thread
+    import threading
+
+    vec = umpnet.VecEnv(1, category=["StorageFurniture"], resolution=RES, seed=5)
+    vec.reset()
+    vec.step_position(np.array(vec.scripted_actions("oracle")))
+    dirs = np.random.default_rng(0).normal(size=(1, 1024, 3)).astype(np.float32)
+    t = time.perf_counter()
+    full = vec.probe_directions(dirs)
+    whole = time.perf_counter() - t
+    # The probe answers in chunks, so the labels are those of one call.
+    np.testing.assert_array_equal(full["r_dist"][:, :32], vec.probe_directions(dirs[:, :32])["r_dist"])
+    timer = threading.Timer(whole / 10, _thread.interrupt_main)
+    timer.start()
+    t = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        vec.probe_directions(dirs)
+    stopped = time.perf_counter() - t
+    timer.join()
+    assert stopped < whole / 2, (stopped, whole)
 
 
 def test_policy_position_rejects_a_goal_of_another_shape():

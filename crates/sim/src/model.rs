@@ -61,6 +61,10 @@ pub struct JointModel {
     pub friction: f32,
 }
 
+/// How far (rad or m) a joint value given as input may lie past a limit:
+/// more than the solvers overshoot one by, far less than a part's travel.
+pub const JOINT_LIMIT_SLACK: f32 = 0.01;
+
 /// A loaded, validated articulated object: a tree of links rooted at `root`.
 #[derive(Clone, Debug)]
 pub struct ObjectModel {
@@ -102,6 +106,44 @@ impl ObjectModel {
             }
         }
         Ok(self)
+    }
+
+    /// Checks joint values before anything is set from them: one per joint,
+    /// finite, and each movable joint's within its limits (continuous joints
+    /// within ±[`crate::urdf::MAX_LIMIT`] rad). `what` names the values in the
+    /// message (`joints`, `goal.joints`, ...). Fixed joints' values are not read.
+    pub fn check_joint_values(&self, values: &[f32], what: &str) -> Result<()> {
+        if values.len() != self.joints.len() {
+            return Err(SimError::InvalidScene(format!(
+                "`{what}` has {} values, {} has {} joints",
+                values.len(),
+                self.name,
+                self.joints.len()
+            )));
+        }
+        for (joint, &v) in self.joints.iter().zip(values) {
+            let unit = if joint.kind.is_prismatic() {
+                "m"
+            } else {
+                "rad"
+            };
+            let (lower, upper) = match joint.kind {
+                JointKind::Fixed => continue,
+                JointKind::Continuous => {
+                    let m = crate::urdf::MAX_LIMIT as f32;
+                    (-m, m)
+                }
+                JointKind::Revolute | JointKind::Prismatic => (joint.lower, joint.upper),
+            };
+            if !(v.is_finite() && v >= lower - JOINT_LIMIT_SLACK && v <= upper + JOINT_LIMIT_SLACK)
+            {
+                return Err(SimError::InvalidScene(format!(
+                    "`{what}`: joint `{}` = {v} is outside its limits [{lower}, {upper}] ({unit})",
+                    joint.name
+                )));
+            }
+        }
+        Ok(())
     }
 
     pub fn movable_joints(&self) -> impl Iterator<Item = (usize, &JointModel)> {

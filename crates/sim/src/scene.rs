@@ -5,7 +5,7 @@ use crate::math::{Pose3, Quat, Vec3};
 use crate::model::ObjectModel;
 use crate::objects::{self, Category};
 use crate::physics::PhysicsProfile;
-use crate::urdf::load_urdf;
+use crate::urdf::{MAX_COORDINATE, load_urdf};
 use rand::Rng;
 use std::path::PathBuf;
 
@@ -135,16 +135,16 @@ impl ObjectPose {
     }
 
     pub fn validate(&self) -> Result<()> {
-        let q = Quat::from_array(self.orientation);
-        if !(self.orientation.iter().all(|v| v.is_finite()) && q.length() > 1e-6) {
+        let norm = Quat::from_array(self.orientation).length();
+        if !(self.orientation.iter().all(|v| v.is_finite()) && (norm - 1.0).abs() <= 0.01) {
             return Err(SimError::InvalidScene(format!(
-                "`pose.orientation` must be a non-zero quaternion (x, y, z, w), got {:?}",
+                "`pose.orientation` must be a unit quaternion (x, y, z, w; norm 1 within 0.01), got {:?} (norm {norm})",
                 self.orientation
             )));
         }
-        if !self.offset_z.is_finite() {
+        if !(self.offset_z.is_finite() && self.offset_z.abs() <= MAX_COORDINATE) {
             return Err(SimError::InvalidScene(format!(
-                "`pose.offset_z` must be finite, got {}",
+                "`pose.offset_z` must be within ±{MAX_COORDINATE} m, got {}",
                 self.offset_z
             )));
         }
@@ -232,31 +232,25 @@ impl Scene {
     /// Checks the scene against its model: one value per joint, finite, goal joint movable.
     pub fn validate(&self, model: &ObjectModel) -> Result<()> {
         self.pose.validate()?;
-        let n = model.joints.len();
-        if self.joints.len() != n {
-            return Err(SimError::InvalidScene(format!(
-                "`joints` has {} values, the object has {n} joints",
-                self.joints.len()
-            )));
-        }
-        if !self
+        if let Some(v) = self
             .base_xy
             .iter()
-            .chain([&self.base_yaw])
-            .chain(&self.joints)
-            .all(|v| v.is_finite())
+            .find(|v| !(v.is_finite() && v.abs() <= MAX_COORDINATE))
         {
-            return Err(SimError::InvalidScene(
-                "base pose and joint values must be finite".into(),
-            ));
+            return Err(SimError::InvalidScene(format!(
+                "`base_xy` must be within ±{MAX_COORDINATE} m of the origin, got {v} in {:?}",
+                self.base_xy
+            )));
         }
+        if !self.base_yaw.is_finite() {
+            return Err(SimError::InvalidScene(format!(
+                "`base_yaw` must be finite, got {}",
+                self.base_yaw
+            )));
+        }
+        model.check_joint_values(&self.joints, "joints")?;
         if let Some(g) = &self.goal {
-            if g.joints.len() != n {
-                return Err(SimError::InvalidScene(format!(
-                    "`goal.joints` has {} values, the object has {n} joints",
-                    g.joints.len()
-                )));
-            }
+            model.check_joint_values(&g.joints, "goal.joints")?;
             if !model
                 .joints
                 .get(g.joint)
@@ -469,5 +463,73 @@ mod tests {
         assert!(e.contains("object_meta_info.json"), "{e}");
         std::fs::remove_file(&meta).unwrap();
         assert_eq!(source.pose().unwrap(), ObjectPose::default());
+    }
+
+    #[test]
+    fn magnitudes_that_parse_but_mean_nothing_are_refused_by_name() {
+        let s = scene();
+        let model = s.load_model().unwrap();
+        s.validate(&model).unwrap();
+        let refused = |bad: Scene, expect: &str| {
+            let e = bad.validate(&model).unwrap_err().to_string();
+            assert!(e.contains(expect), "{e} does not say {expect:?}");
+        };
+        let pose = |orientation: [f32; 4], offset_z: f32| Scene {
+            pose: ObjectPose {
+                orientation,
+                offset_z,
+                ..s.pose
+            },
+            ..s.clone()
+        };
+        refused(pose([1e30, 0.0, 0.0, 0.0], 0.4), "unit quaternion");
+        refused(pose([0.0, 0.0, 0.0, 2.0], 0.4), "(norm 2)");
+        refused(
+            pose([0.0, 0.0, 0.0, 1.0], 1e30),
+            "`pose.offset_z` must be within",
+        );
+        refused(
+            Scene {
+                base_xy: [1e30, 0.0],
+                ..s.clone()
+            },
+            "`base_xy` must be within",
+        );
+        refused(
+            Scene {
+                base_yaw: f32::NAN,
+                ..s.clone()
+            },
+            "`base_yaw` must be finite",
+        );
+        let door = model.movable_joints().next().unwrap().1;
+        let mut joints = s.joints.clone();
+        joints[0] = 1e6;
+        refused(
+            Scene {
+                joints,
+                ..s.clone()
+            },
+            &format!(
+                "`joints`: joint `{}` = 1000000 is outside its limits",
+                door.name
+            ),
+        );
+        // Within the slack a value is the limit it rounds to, not an error.
+        let mut joints = s.joints.clone();
+        joints[0] = door.upper + 0.5 * crate::model::JOINT_LIMIT_SLACK;
+        Scene {
+            joints,
+            ..s.clone()
+        }
+        .validate(&model)
+        .unwrap();
+        refused(
+            Scene {
+                joints: vec![],
+                ..s.clone()
+            },
+            "`joints` has 0 values",
+        );
     }
 }

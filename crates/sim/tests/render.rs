@@ -167,3 +167,74 @@ fn a_batch_renders_what_each_renderer_renders_alone() {
     }
     assert!(render_batch(Vec::new()).unwrap().is_empty());
 }
+
+/// An object with as many links as the loader allows draws every one of them
+/// on the GPU: the renderer has a part slot for each link, the floor and the
+/// gripper, and its picture matches the CPU ray caster's.
+#[test]
+fn an_object_with_the_most_links_allowed_renders_on_both_renderers() {
+    if !gpu_available() {
+        eprintln!("skipped: no wgpu adapter");
+        return;
+    }
+    let n = umpnet_sim::urdf::MAX_LINKS - 1;
+    let mut urdf = String::from(
+        r#"<robot name="many"><link name="base"><visual><geometry><box size="0.6 0.6 0.05"/></geometry></visual></link>"#,
+    );
+    for i in 0..n {
+        // A staircase of plates, each one a link on its own hinge.
+        urdf += &format!(
+            r#"<link name="l{i}"><visual><origin xyz="{:.3} 0 {:.3}"/><geometry><box size="0.05 0.4 0.01"/></geometry></visual></link>"#,
+            -0.3 + 0.6 * i as f32 / n as f32,
+            0.05 + 0.01 * i as f32
+        );
+    }
+    for i in 0..n {
+        urdf += &format!(
+            r#"<joint name="j{i}" type="revolute"><parent link="base"/><child link="l{i}"/><axis xyz="0 0 1"/><limit lower="0" upper="1"/></joint>"#
+        );
+    }
+    urdf += "</robot>";
+    let dir = std::env::temp_dir().join(format!("umpnet-many-links-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("many.urdf");
+    std::fs::write(&path, urdf).unwrap();
+    let object = ObjectSource::File { path };
+    let model = object.load_scaled().unwrap();
+    assert_eq!(model.links.len(), umpnet_sim::urdf::MAX_LINKS);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let s = sample_scene(&mut rng, Task::Exploration, None, object, &model, None).unwrap();
+    let camera = Camera::reference(120, 160);
+    let mut frames = [RendererKind::Wgpu, RendererKind::Cpu].map(|kind| {
+        SimEnv::new(s.clone(), camera.clone(), create_renderer(kind).unwrap())
+            .unwrap()
+            .render()
+            .unwrap()
+    });
+    let [a, b] = &mut frames;
+    let seen = |f: &umpnet_sim::render::Frame| {
+        let mut ids: Vec<u32> = f
+            .segmentation
+            .iter()
+            .copied()
+            .filter(|s| *s >= SEG_OBJECT_BASE)
+            .collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids
+    };
+    let (ga, gb) = (seen(a), seen(b));
+    assert!(ga.len() >= n / 2, "the GPU drew {} of {n} links", ga.len());
+    let same = a
+        .segmentation
+        .iter()
+        .zip(&b.segmentation)
+        .filter(|(x, y)| x == y)
+        .count();
+    assert!(
+        same as f64 >= 0.99 * a.segmentation.len() as f64,
+        "segmentation agrees on {same} of {} pixels; links seen {ga:?} against {gb:?}",
+        a.segmentation.len()
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -139,6 +139,10 @@ enum Backend {
     Reference(Box<reference::ReferenceArticulation>),
 }
 
+/// Farthest a grasp point may lie from its link's geometry (m): the suction
+/// cup touches the surface it holds, and picked points lie on it.
+pub const MAX_GRASP_GAP: f32 = 0.05;
+
 /// One articulated object (fixed base) plus the gripper.
 pub struct Articulation {
     model: Arc<ObjectModel>,
@@ -222,23 +226,12 @@ impl Articulation {
         dispatch!(self, b => b.joint_velocity(joint))
     }
 
-    /// Sets every joint to the given values (clamped into its limits), zeroes
-    /// velocities and lets go of anything the gripper holds.
+    /// Sets every joint to the given values, zeroes velocities and lets go of
+    /// anything the gripper holds. A value past a limit by more than
+    /// [`crate::model::JOINT_LIMIT_SLACK`] is an error naming the joint; one
+    /// within the slack is clamped.
     pub fn set_joint_positions(&mut self, values: &[f32]) -> Result<()> {
-        if values.len() != self.model.joints.len() {
-            return Err(crate::SimError::InvalidScene(format!(
-                "expected {} joint values for {}, got {}",
-                self.model.joints.len(),
-                self.model.name,
-                values.len()
-            )));
-        }
-        if let Some(bad) = values.iter().position(|v| !v.is_finite()) {
-            return Err(crate::SimError::InvalidScene(format!(
-                "joint value {bad} is not finite: {}",
-                values[bad]
-            )));
-        }
+        self.model.check_joint_values(values, "joint values")?;
         dispatch!(mut self, b => b.set_joint_positions(values));
         Ok(())
     }
@@ -290,7 +283,38 @@ impl Articulation {
                 "cannot attach to link {link} at {point_in_world}"
             )));
         }
+        let gap = self.distance_to_link(point_in_world, link);
+        if gap > MAX_GRASP_GAP {
+            return Err(crate::SimError::InvalidAction(format!(
+                "cannot attach to link `{}` at {point_in_world}: the point is {gap:.3} m from the link's geometry; suction holds a surface within {MAX_GRASP_GAP} m",
+                self.model.links.get(link).map_or("?", |l| l.name.as_str())
+            )));
+        }
         dispatch!(mut self, b => b.attach(point_in_world, link))
+    }
+
+    /// How far a world point lies outside the link's bounding box (its visual
+    /// geometry where it has some, its frame's origin where it has none).
+    fn distance_to_link(&self, point_in_world: Vec3, link: usize) -> f32 {
+        let point_in_link = self
+            .world_from_link(link)
+            .inverse_transform_point(point_in_world);
+        let mut positions = self
+            .model
+            .links
+            .get(link)
+            .into_iter()
+            .flat_map(|l| &l.visuals)
+            .flat_map(|v| v.mesh_in_link.positions.iter().copied())
+            .peekable();
+        if positions.peek().is_none() {
+            return point_in_link.length();
+        }
+        let (lo, hi) = positions.fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(p), hi.max(p)),
+        );
+        (point_in_link - point_in_link.clamp(lo, hi)).length()
     }
 
     /// Removes the gripper from the world.

@@ -13,7 +13,9 @@ use rayon::prelude::*;
 use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::util::DeviceExt;
 
-const MAX_PARTS: usize = 64;
+/// Part slots: every link an object may have, the floor and the gripper.
+/// shader.wgsl holds the same number (checked by a test).
+const MAX_PARTS: usize = crate::urdf::MAX_LINKS + 2;
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DATA_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -557,4 +559,18 @@ fn lock(gpu: &Gpu) -> Result<std::sync::MutexGuard<'_, ()>> {
     gpu.lock
         .lock()
         .map_err(|_| SimError::Render("renderer lock poisoned".into()))
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_shader_has_a_slot_for_every_part() {
+        let shader = include_str!("shader.wgsl");
+        let n = super::MAX_PARTS;
+        assert!(
+            shader.contains(&format!("const MAX_PARTS: u32 = {n}u;")),
+            "{n}"
+        );
+        assert!(shader.contains(&format!("array<mat4x4<f32>, {n}>")), "{n}");
+    }
 }

@@ -1,6 +1,6 @@
 // One pass writes colour (rgba8) and a uint target: linear depth bits,
 // segment id and the packed world normal (GL cannot render R32Float).
-const MAX_PARTS: u32 = 64u;
+const MAX_PARTS: u32 = 66u;
 
 struct Camera {
     clip_from_camera: mat4x4<f32>,
@@ -10,7 +10,7 @@ struct Camera {
 };
 
 @group(0) @binding(0) var<uniform> camera: Camera;
-@group(0) @binding(1) var<uniform> parts: array<mat4x4<f32>, 64>;
+@group(0) @binding(1) var<uniform> parts: array<mat4x4<f32>, 66>;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,

@@ -1,6 +1,6 @@
 //! From urdf-rs's structure to an [`ObjectModel`]: meshes and colours, the
 //! inertials, and the joints ordered as a tree.
-use super::{MAX_COORDINATE, MeshSource, quoted, urdf_err};
+use super::{MAX_COORDINATE, MAX_MASS, MIN_MASS, MeshSource, quoted, urdf_err};
 use crate::error::Result;
 use crate::math::{Mat3, Pose3, Quat, Vec3};
 use crate::mesh::TriMesh;
@@ -187,11 +187,11 @@ pub(super) fn build_model(
         let (mass, com, inertia, derived) = if with_inertial.contains(&l.name) {
             let i = &l.inertial;
             let m = i.mass.value as f32;
-            if !(m.is_finite() && m > 0.0) {
+            if !(m.is_finite() && (MIN_MASS..=MAX_MASS).contains(&i.mass.value)) {
                 return Err(urdf_err(
                     path,
                     format!(
-                        "link `{}`: <mass value> must be a positive number, found {}",
+                        "link `{}`: <mass value> must be a positive number of kg within [{MIN_MASS:e}, {MAX_MASS:e}], found {:?}",
                         l.name, i.mass.value
                     ),
                 ));

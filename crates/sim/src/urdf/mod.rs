@@ -38,6 +38,10 @@ pub const MAX_COORDINATE: f32 = 1000.0;
 /// Joint limits, in metres (prismatic) or radians (revolute): a wider range
 /// is a continuous joint written as a limited one, or a unit mistake.
 pub const MAX_LIMIT: f64 = 1000.0;
+/// A link's mass (kg): a milligram to a thousand tonnes. Outside it the
+/// solver's mass ratios (gripper against part) lose all precision in f32.
+pub const MIN_MASS: f64 = 1e-6;
+pub const MAX_MASS: f64 = 1e6;
 /// Mesh scales: beyond these a mesh is flat or huge in f32.
 pub const MIN_MESH_SCALE: f64 = 1e-6;
 pub const MAX_MESH_SCALE: f64 = 1e6;
@@ -89,6 +93,7 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
         ));
     }
     xml::check_xml_shape(text, path)?;
+    xml::check_char_refs(text, path)?;
     let doc = roxmltree::Document::parse(text)
         .map_err(|e| urdf_err(path, format!("not well-formed XML: {e}")))?;
     let root = doc.root_element();
@@ -153,7 +158,8 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
         // The URDF spec requires <limit> on revolute and prismatic joints; without
         // one a reader's default locks the joint at 0 and nothing says why.
         let limited = matches!(n.attribute("type"), Some("revolute" | "prismatic"));
-        if limited && !n.children().any(|c| c.has_tag_name("limit")) {
+        let limit = n.children().find(|c| c.has_tag_name("limit"));
+        if limited && limit.is_none() {
             return Err(urdf_err(
                 path,
                 format!(
@@ -164,7 +170,24 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
                 ),
             ));
         }
+        // Both default to 0 in the spec, which locks the joint: a file that
+        // leaves them out almost always meant a joint that moves.
+        if let Some(limit) = limit.filter(|_| limited)
+            && let Some(missing) = ["lower", "upper"]
+                .into_iter()
+                .find(|a| limit.attribute(*a).is_none())
+        {
+            return Err(urdf_err(
+                path,
+                format!(
+                    "<joint name=\"{}\"> at line {}: its <limit> has no `{missing}`; give both lower and upper (left out, both are 0 and the joint cannot move), or make an unlimited hinge `continuous`",
+                    quoted(name),
+                    line_of(n)
+                ),
+            ));
+        }
     }
+    check_mimics(root, path, &line_of)?;
     let robot = urdf_rs::read_from_string(&mended)
         .map_err(|e| urdf_err(path, format!("invalid URDF: {e}")))?;
     checks::check_numbers(&robot, path)?;
@@ -177,4 +200,83 @@ pub(crate) fn quoted(value: &str) -> String {
         Some((cut, _)) => format!("{}... ({} bytes)", &value[..cut], value.len()),
         None => value.to_owned(),
     }
+}
+
+/// `<mimic>` couples a joint to another. The simulator has no coupled
+/// joints, so every `<mimic>` is refused, with what is wrong with it first
+/// (a missing or unknown target, the joint itself, a multiplier or offset
+/// that is no finite number, a cycle) and otherwise what to do instead:
+/// ignoring it would let a part move that the file says must follow another.
+fn check_mimics(
+    root: roxmltree::Node,
+    path: &Path,
+    line_of: &dyn Fn(roxmltree::Node) -> u32,
+) -> Result<()> {
+    let joints: Vec<roxmltree::Node> = root
+        .children()
+        .filter(|n| n.has_tag_name("joint"))
+        .collect();
+    let target_of = |name: &str| {
+        joints
+            .iter()
+            .find(|j| j.attribute("name") == Some(name))
+            .and_then(|j| j.children().find(|c| c.has_tag_name("mimic")))
+            .and_then(|m| m.attribute("joint"))
+    };
+    for j in &joints {
+        let Some(m) = j.children().find(|c| c.has_tag_name("mimic")) else {
+            continue;
+        };
+        let name = j.attribute("name").unwrap_or_default();
+        let at = format!("<joint name=\"{}\"> at line {}", quoted(name), line_of(m));
+        let fail = |what: String| Err(urdf_err(path, format!("{at}: {what}")));
+        let Some(target) = m.attribute("joint") else {
+            return fail("<mimic> names no joint (its `joint` attribute is missing)".into());
+        };
+        if target == name {
+            return fail("<mimic> names the joint itself".into());
+        }
+        if !joints.iter().any(|o| o.attribute("name") == Some(target)) {
+            return fail(format!(
+                "<mimic joint=\"{}\"> names a joint the file does not have",
+                quoted(target)
+            ));
+        }
+        for attr in ["multiplier", "offset"] {
+            if let Some(v) = m.attribute(attr)
+                && !v
+                    .trim()
+                    .parse::<f64>()
+                    .is_ok_and(|x| (x as f32).is_finite())
+            {
+                return fail(format!(
+                    "<mimic {attr}=\"{}\"> must be a finite number",
+                    quoted(v)
+                ));
+            }
+        }
+        // Following the targets from here either ends or comes back.
+        let mut seen = vec![name];
+        let mut next = Some(target);
+        while let Some(t) = next {
+            if seen.contains(&t) {
+                return fail(format!(
+                    "<mimic> joints form a cycle: {} -> {}",
+                    seen.iter()
+                        .map(|s| quoted(s))
+                        .collect::<Vec<_>>()
+                        .join(" -> "),
+                    quoted(t)
+                ));
+            }
+            seen.push(t);
+            next = target_of(t);
+        }
+        return fail(format!(
+            "<mimic joint=\"{}\"> couples this joint to another, and umpnet simulates no coupled joints; remove the <mimic> element to let `{}` move on its own, or make the joint `fixed`",
+            quoted(target),
+            quoted(name)
+        ));
+    }
+    Ok(())
 }

@@ -158,3 +158,46 @@ fn mend_numbers(value: &str) -> Option<String> {
     }
     (!parts.is_empty()).then(|| parts.join(" "))
 }
+
+/// Numeric character references must name a character XML allows
+/// (`#x9 | #xA | #xD | [#x20-#xD7FF] | [#xE000-#xFFFD] | [#x10000-#x10FFFF]`):
+/// a reference beyond Unicode such as `&#x110000;` is not text, yet a lenient
+/// reader passes it on.
+pub(super) fn check_char_refs(text: &str, path: &Path) -> Result<()> {
+    let mut rest = text;
+    let mut offset = 0;
+    while let Some(at) = rest.find("&#") {
+        let start = offset + at;
+        let tail = rest.get(at + 2..).unwrap_or_default();
+        let end = tail.find(';').filter(|e| *e <= 12);
+        let code = end.and_then(|e| {
+            let digits = tail.get(..e)?;
+            match digits.strip_prefix('x') {
+                Some(hex) => u32::from_str_radix(hex, 16).ok(),
+                None => digits.parse::<u32>().ok(),
+            }
+        });
+        let allowed = code.is_some_and(
+            |c| matches!(c, 0x9 | 0xA | 0xD | 0x20..=0xD7FF | 0xE000..=0xFFFD | 0x10000..=0x10FFFF),
+        );
+        if !allowed {
+            let line = 1 + text.get(..start).unwrap_or_default().matches('\n').count();
+            let shown: String = text
+                .get(start..)
+                .unwrap_or_default()
+                .chars()
+                .take(16)
+                .collect();
+            return Err(urdf_err(
+                path,
+                format!(
+                    "line {line}: character reference `{}` names no character XML allows (expected &#N; or &#xH; up to U+10FFFF, not a control character or surrogate)",
+                    quoted(shown.split(';').next().unwrap_or_default())
+                ),
+            ));
+        }
+        offset = start + 2;
+        rest = text.get(offset..).unwrap_or_default();
+    }
+    Ok(())
+}
