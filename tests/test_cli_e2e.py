@@ -753,7 +753,9 @@ def test_infer_refuses_cameras_frames_and_depths_that_do_not_fit_by_name(tmp_pat
 
     # A camera.json written for another image size: its intrinsics would not fit.
     p = infer(camera=camera("small.json", height=48, width=64))
-    assert p.returncode == 2 and "small.json was written for 48x64 images" in p.stderr and "96x128" in p.stderr, p.stderr
+    assert p.returncode == 2 and "small.json was written for 48x64 images" in p.stderr and "96x128" in p.stderr, (
+        p.stderr
+    )
     # Intrinsics or a translation of 1e30 parse, and describe no camera.
     k = cam["intrinsics"]
     p = infer(camera=camera("focal.json", intrinsics=k | {"fx": 1e30}))

@@ -434,7 +434,10 @@ def test_magnitudes_that_mean_nothing_are_refused_by_name():
     cabinet = str(Path(__file__).resolve().parents[3] / "crates" / "sim" / "tests" / "data" / "cabinet.urdf")
     art = umpnet.Articulation(cabinet, position=(0.0, -0.5, 0.0))
     # A joint value past its limit was clamped without a word.
-    with pytest.raises(ValueError, match=r"joint `drawer_slide` = 1000000000000000000000000000000 is outside its limits \[0, 0.4\] \(m\)"):
+    with pytest.raises(
+        ValueError,
+        match=r"joint `drawer_slide` = 1000000000000000000000000000000 is outside its limits \[0, 0.4\] \(m\)",
+    ):
         art.set_joints({"drawer_slide": 1e30})
     art.set_joints({"drawer_slide": 0.2})
     assert art.joint("drawer_slide") == pytest.approx(0.2)
