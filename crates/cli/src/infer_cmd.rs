@@ -562,3 +562,92 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     outln!("{out}");
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// A version-1 .npy file of `h` x `w` little-endian float32 values.
+    fn npy(h: usize, w: usize, descr: &str) -> Vec<u8> {
+        let mut header =
+            format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({h}, {w}), }}");
+        while (10 + header.len() + 1) % 64 != 0 {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut out = b"\x93NUMPY\x01\x00".to_vec();
+        out.extend((header.len() as u16).to_le_bytes());
+        out.extend(header.as_bytes());
+        out.extend((0..h * w).flat_map(|i| (1.0 + i as f32).to_le_bytes()));
+        out
+    }
+
+    /// Headers that lie (about the shape, the dtype, the header's own
+    /// length, the version) are refused or read as what the file holds:
+    /// nothing is allocated beyond the file's size, and nothing panics.
+    #[test]
+    fn mutated_npy_headers_are_refused_or_read_within_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("depth.npy");
+        let shapes = [
+            "0",
+            "1",
+            "4",
+            "5",
+            "20",
+            "-1",
+            "2147483648",
+            "18446744073709551615",
+            "99999999999999999999",
+            "",
+        ];
+        let descrs = ["<f4", "<f8", "<u2", ">f4", "|b1", "<c16", "<f4f8"];
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let (mut read, mut refused) = (0, 0);
+        for case in 0..2000 {
+            let mut bytes = npy(4, 5, descrs[rng.random_range(0..descrs.len())]);
+            let text = String::from_utf8_lossy(&bytes).into_owned();
+            if case % 2 == 0 {
+                let lie = format!(
+                    "({}, {})",
+                    shapes[rng.random_range(0..shapes.len())],
+                    shapes[rng.random_range(0..shapes.len())]
+                );
+                let at = text.find("(4, 5)").unwrap();
+                let mut b = bytes[..at].to_vec();
+                b.extend(lie.as_bytes());
+                b.extend(&bytes[at + 6..]);
+                bytes = b;
+            }
+            match rng.random_range(0..4) {
+                0 => bytes[6] = rng.random_range(0..5),
+                1 => {
+                    let k = rng.random_range(8..10);
+                    bytes[k] = rng.random();
+                }
+                2 => bytes.truncate(rng.random_range(0..bytes.len())),
+                _ => {}
+            }
+            std::fs::write(&path, &bytes).unwrap();
+            match read_npy(&path, 0.001) {
+                Ok((h, w, values)) => {
+                    read += 1;
+                    assert_eq!(values.len(), h * w);
+                    assert!(
+                        h * w * 2 <= bytes.len(),
+                        "{h}x{w} from {} bytes",
+                        bytes.len()
+                    );
+                }
+                Err(e) => {
+                    refused += 1;
+                    let msg = format!("{e:#}");
+                    assert!(msg.contains("depth.npy") && msg.len() < 2000, "{msg}");
+                }
+            }
+        }
+        assert!(read > 50 && refused > 500, "{read} read, {refused} refused");
+    }
+}

@@ -67,12 +67,14 @@ fn geometry_mesh(
                     ),
                 ));
             }
-            if !mesh_path.is_file() {
+            if !mesh_path.exists() {
                 return Err(urdf_err(
                     file,
                     format!("link `{link}`: mesh file {} not found", mesh_path.display()),
                 ));
             }
+            // A FIFO or a device where the mesh should be: named as what it is.
+            crate::fsio::check_input(&mesh_path, crate::mesh::MAX_OBJ_BYTES)?;
             let mesh = TriMesh::read_obj(&mesh_path)?;
             match scale {
                 Some(s) => mesh.scaled(Vec3::from(s.0.map(|v| v as f32))),
