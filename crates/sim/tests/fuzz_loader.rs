@@ -536,13 +536,13 @@ enum FolderMutation {
 fn folder_mutation() -> impl Strategy<Value = FolderMutation> {
     let k = any::<usize>();
     prop_oneof![
-        k.clone().prop_map(FolderMutation::MeshLinksOut),
-        (k.clone(), k.clone()).prop_map(|(a, b)| FolderMutation::MeshLinksIn(a, b)),
-        k.clone().prop_map(FolderMutation::MeshIsFifo),
-        (k.clone(), any::<bool>()).prop_map(|(a, b)| FolderMutation::EndlessMtl(a, b)),
-        (k.clone(), 100_000..600_000usize, 1..8usize)
+        k.prop_map(FolderMutation::MeshLinksOut),
+        (k, k).prop_map(|(a, b)| FolderMutation::MeshLinksIn(a, b)),
+        k.prop_map(FolderMutation::MeshIsFifo),
+        (k, any::<bool>()).prop_map(|(a, b)| FolderMutation::EndlessMtl(a, b)),
+        (k, 100_000..600_000usize, 1..8usize)
             .prop_map(|(a, f, c)| FolderMutation::HugeTotal(a, f, c)),
-        (k.clone(), k).prop_map(|(a, b)| FolderMutation::Mimic(a, b)),
+        (k, k).prop_map(|(a, b)| FolderMutation::Mimic(a, b)),
     ]
 }
 
