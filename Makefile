@@ -111,6 +111,8 @@ PYTEST = PYTHONPATH=tests/plugins PYTEST_ADDOPTS="-p skipguard" $(PY) -m pytest 
 test-python: build py fixture
 	# One process per suite: native libraries loaded by one suite cannot affect another.
 	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_e2e.py tests/test_skipguard.py tests/test_mutant_records.py
+	# The bad-input corpus, one file per kind, each case under a memory cap and a deadline.
+	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_bad_inputs.py
 	# Ray on a local cluster: sharded evaluation, retries.
 	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_ray.py
 	# Evaluation at any size: flat memory, resume after a kill, merging many shards.
