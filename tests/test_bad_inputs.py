@@ -12,7 +12,9 @@ Case fields (see any file for examples):
   (set dotted keys), `poison` (a copy of the shipped package whose output is
   multiplied by a value), `exec` (Python with TMP, REPO, np).
 - `cli` with `exit` and `stderr`, and optionally `stdout` (a file to write it
-  to, e.g. /dev/full) and `interrupt_after` (seconds before SIGINT); or
+  to, e.g. /dev/full), `interrupt_after` (seconds before SIGINT), `fsize`
+  (the largest file it may write, as on a full disk) and `leaves_no` (globs
+  under $TMP that must match nothing afterwards); or
 - `python` with `raises` (an exception type name, or null for none) and `match`.
 """
 
@@ -119,6 +121,10 @@ def run_case(case, tmp: Path):
     try:
         # prlimit (util-linux) caps the address space of the process it starts.
         capped = ["prlimit", f"--as={MEMORY_CAP}", "--", *cmd]
+        if "fsize" in case:
+            # A disk that fills up: writes past `fsize` bytes fail (EFBIG). The
+            # shell ignores SIGXFSZ first, and the ignored signal survives exec.
+            capped = ["sh", "-c", 'trap "" XFSZ; exec "$@"', "sh", "prlimit", f"--fsize={case['fsize']}", *capped[1:]]
         p = subprocess.Popen(capped, stdout=out, stderr=subprocess.PIPE, cwd=ROOT, text=True)
         try:
             if "interrupt_after" in case:
@@ -158,6 +164,9 @@ def test_bad_input_gets_its_error_within_memory_and_time(kind, case, tmp_path):
         assert code == case["exit"], (code, err[-2000:])
         if case.get("stderr"):
             assert case["stderr"] in err, err[-2000:]
+        for pattern in case.get("leaves_no", []):
+            left = sorted(str(p) for p in tmp_path.glob(pattern))
+            assert not left, f"left behind: {left}"
     elif case["raises"] is None:
         assert code == 0, err[-2000:]
     else:

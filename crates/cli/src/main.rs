@@ -285,7 +285,14 @@ fn main() {
         } else {
             1
         };
-        let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
+        // An error that quotes its source (`cannot write: File too large`)
+        // would otherwise say the cause twice.
+        let mut msg: Vec<String> = Vec::new();
+        for cause in e.chain().map(|c| c.to_string()) {
+            if !msg.last().is_some_and(|m| m.ends_with(&cause)) {
+                msg.push(cause);
+            }
+        }
         if ctx.json {
             report_json_error(&msg.join(": "), &msg, code);
         }

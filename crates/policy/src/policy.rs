@@ -159,7 +159,9 @@ impl UmpnetPolicy {
         }
         let (_, pixel) = best
             .or(fallback)
-            .ok_or_else(|| PolicyError::Input("no pixel with depth in the observation".into()))?;
+            .ok_or_else(|| PolicyError::Input(
+                "no pixel with depth in the observation: its depth channel (the last) is 0 everywhere, so no surface is in view to grasp".into(),
+            ))?;
         Ok(PositionChoice {
             pixel,
             affordance: aff,
