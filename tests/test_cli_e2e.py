@@ -17,18 +17,6 @@ ROOT = Path(__file__).resolve().parents[1]
 UMPNET = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
 
 
-def fixture_package() -> str:
-    """The contract-test package (`make fixture`). Without it the test is
-    skipped with the reason, except in CI (CI=true), where that is a failure."""
-    path = os.environ.get("UMPNET_FIXTURE")
-    if not path:
-        why = "UMPNET_FIXTURE not set (make test sets it)"
-        if os.environ.get("CI") == "true":
-            pytest.fail(why)
-        pytest.skip(why)
-    return path
-
-
 def run(*args, check=True):
     p = subprocess.run([UMPNET, *args], check=False, capture_output=True, text=True, timeout=600)
     if check and p.returncode != 0:
@@ -282,8 +270,8 @@ def test_broken_object_file_exits_1_naming_the_file(tmp_path):
     assert p.stderr.count("\n") == 1
 
 
-def test_learned_policy_episode_and_infer(tmp_path):
-    fixture = fixture_package()
+def test_learned_policy_episode_and_infer(tmp_path, fixture_package):
+    fixture = fixture_package
     out = json.loads(run("--json", "explore", "--category", "Door", "--policy", "umpnet", "--model", fixture).stdout)
     assert out["policy"] == "umpnet" and out["scene"]["category"] == "Door"
     # The shipped model on four door scenes: a grasp on the door every time,
@@ -392,7 +380,7 @@ def _pooled(cells, policy, metric):
 
 
 @pytest.mark.parametrize("task", list(FLOORS))
-def test_the_shipped_model_holds_its_reported_figure_and_weaker_models_do_not(task):
+def test_the_shipped_model_holds_its_reported_figure_and_weaker_models_do_not(task, fixture_package):
     """On fixed test scenes (10 per category), the shipped model must reach the
     figure model.json reports minus the 95% interval of this sample. A stale or
     mismatched export, or a model at the baselines' level, falls under it: the
@@ -400,7 +388,7 @@ def test_the_shipped_model_holds_its_reported_figure_and_weaker_models_do_not(ta
     shipped = ROOT / "models" / "umpnet-small"
     metric = FLOORS[task]
     reported = json.loads((shipped / "model.json").read_text())["evaluation"][REPORTED[metric]]["test"]
-    weaker = {"untrained": fixture_package(), "aot-only": str(ROOT / "models" / "baselines" / "aot-only")}
+    weaker = {"untrained": fixture_package, "aot-only": str(ROOT / "models" / "baselines" / "aot-only")}
     policies = ",".join([f"shipped={shipped}"] + [f"{k}={v}" for k, v in weaker.items()])
     res = json.loads(
         run("--json", "eval", "--task", task, "--split", "test", "--episodes-per-category", "10",
@@ -553,10 +541,10 @@ def test_unix_manners_and_clear_lookups(tmp_path):
     assert p.returncode == 0, p.stderr
 
 
-def test_each_policy_sees_its_own_resolution_so_listing_others_changes_nothing(tmp_path):
+def test_each_policy_sees_its_own_resolution_so_listing_others_changes_nothing(tmp_path, fixture_package):
     """Scripted policies see --resolution and a learned one its package's input;
     random's episodes are the same whether or not a learned policy is listed."""
-    fixture = fixture_package()
+    fixture = fixture_package
     common = ["eval", "--task", "goal", "--categories", "Door,Microwave", "--episodes-per-category", "3", "--seed", "7"]
     run(*common, "--policies", "oracle,random", "--out", str(tmp_path / "a"))
     p = run(*common, "--policies", f"umpnet={fixture},oracle,random", "--out", str(tmp_path / "b"))
@@ -797,8 +785,8 @@ def _poisoned(fixture: str, dest: Path, file: str, output: str, value: float) ->
     return dest
 
 
-def test_network_outputs_that_are_not_numbers_or_out_of_range_are_errors_naming_the_network(tmp_path):
-    fixture = fixture_package()
+def test_network_outputs_that_are_not_numbers_or_out_of_range_are_errors_naming_the_network(tmp_path, fixture_package):
+    fixture = fixture_package
     cases = [
         ("position.onnx", "affordance", float("nan"), "explore"),
         ("direction_decoder.onnx", "distance", float("nan"), "goal"),

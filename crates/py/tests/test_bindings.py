@@ -13,18 +13,6 @@ import umpnet
 RES = (48, 64)
 
 
-def fixture_package() -> str:
-    """The contract-test package (`make fixture`). Without it the test is
-    skipped with the reason, except in CI (CI=true), where that is a failure."""
-    path = os.environ.get("UMPNET_FIXTURE")
-    if not path:
-        why = "UMPNET_FIXTURE not set (make test sets it)"
-        if os.environ.get("CI") == "true":
-            pytest.fail(why)
-        pytest.skip(why)
-    return path
-
-
 def episode(env, steps=3, policy="oracle"):
     obs = env.reset()
     px = env.scripted_action(policy)
@@ -151,8 +139,8 @@ def test_gymnasium_check_env():
     assert obs["phase"] == 1
 
 
-def test_policy_runs_on_env_observations():
-    pol = umpnet.Policy(fixture_package())
+def test_policy_runs_on_env_observations(fixture_package):
+    pol = umpnet.Policy(fixture_package)
     h, w = pol.resolution
     env = umpnet.Env(seed=2, resolution=(h, w))
     obs = env.reset()
