@@ -316,19 +316,35 @@ def _world(case: Case, point_in_base) -> list:
     return list(np.asarray(case.position) + rotated)
 
 
+def _carried(point, before: np.ndarray, after: np.ndarray) -> list:
+    """`point` moved by the rigid motion that takes a link's vertices from
+    `before` to `after` (Kabsch: the rotation from the SVD of their covariance)."""
+    a, b = before.mean(axis=0), after.mean(axis=0)
+    u, _, vt = np.linalg.svd((before - a).T @ (after - b))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rotation = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return list(rotation @ (np.asarray(point, float) - a) + b)
+
+
 def run_case(case: Case, physics: str = "reference") -> Result:
     place = {"position": case.position, "orientation": case.orientation, "scale": case.scale}
     art = umpnet.Articulation(case.urdf, physics=physics, **place)
     ref = ReferenceSim(case.urdf, **place)
     try:
+        point = case.point
         if case.start:
+            # Cases name their grasp point with the object closed: it rides
+            # with its link into the start state, so suction still lands on
+            # the part (umpnet refuses a grasp away from its link's surface).
+            before = np.array(art.link_vertices(case.link))
             art.set_joints(case.start)
             for name in case.start:
                 ref.set_joint(name, art.joint(name))
+            point = _carried(point, before, np.array(art.link_vertices(case.link)))
         points = LinkPoints(art, ref)
         movable = [j for j in art.joint_names() if _kind(case.urdf, j) is not None and j != case.joint]
-        art.grasp(case.point, case.link)
-        ref.grasp(case.point, case.link)
+        art.grasp(point, case.link)
+        ref.grasp(point, case.link)
         trajectory = {"reference": [], "umpnet": []}
         seconds = {"reference": 0.0, "umpnet": 0.0}
         record = {"directions": [], "reference_steps": [], "reference_mount": [], "umpnet_steps": []}

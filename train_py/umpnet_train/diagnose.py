@@ -141,7 +141,10 @@ def run(policy, split, task, episodes, seed, physics, position="learned", direct
             if not live.any():
                 break
             if direction == "learned":
-                res = policy.direction_batch(obs["image"], obs["reference"], obs["gripper_pixel"], mode)
+                # An environment without a grasp reports pixel (-1, -1); its
+                # answer is not used (it is not live), but the pixel must be on the image.
+                pixels = np.maximum(obs["gripper_pixel"], 0)
+                res = policy.direction_batch(obs["image"], obs["reference"], pixels, mode)
                 dirs = np.array([r["direction"] or [0.0, 0.0, 1.0] for r in res], np.float32)
                 live &= np.array([r["direction"] is not None for r in res])
                 if probe and live.any():

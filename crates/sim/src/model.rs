@@ -1,9 +1,10 @@
 //! The articulated object the simulator works on: links with their visuals
 //! and inertia, joints with their frames, axes and limits. The URDF loader
 //! (`crate::urdf`) and the generator (`crate::objects`) produce it; physics,
-//! rendering and labels read it.
+//! rendering and labels read it. [`ObjectPose`] is how a file's object is
+//! placed in a scene.
 use crate::error::{Result, SimError};
-use crate::math::{Mat3, Pose3, Vec3};
+use crate::math::{Mat3, Pose3, Quat, Vec3};
 use crate::mesh::TriMesh;
 use std::path::PathBuf;
 
@@ -61,6 +62,15 @@ pub struct JointModel {
     pub friction: f32,
 }
 
+/// Bounds every model keeps, whichever reader made it. They are f32's
+/// comfortable range, not any object's size.
+///
+/// Largest coordinate (m) of any origin or vertex in a link's frame.
+pub const MAX_COORDINATE: f32 = 1000.0;
+/// Joint limits, in metres (prismatic) or radians (revolute): a wider range
+/// is a continuous joint written as a limited one, or a unit mistake.
+pub const MAX_LIMIT: f64 = 1000.0;
+
 /// How far (rad or m) a joint value given as input may lie past a limit:
 /// more than the solvers overshoot one by, far less than a part's travel.
 pub const JOINT_LIMIT_SLACK: f32 = 0.01;
@@ -110,7 +120,7 @@ impl ObjectModel {
 
     /// Checks joint values before anything is set from them: one per joint,
     /// finite, and each movable joint's within its limits (continuous joints
-    /// within ±[`crate::urdf::MAX_LIMIT`] rad). `what` names the values in the
+    /// within ±[`MAX_LIMIT`] rad). `what` names the values in the
     /// message (`joints`, `goal.joints`, ...). Fixed joints' values are not read.
     pub fn check_joint_values(&self, values: &[f32], what: &str) -> Result<()> {
         if values.len() != self.joints.len() {
@@ -130,7 +140,7 @@ impl ObjectModel {
             let (lower, upper) = match joint.kind {
                 JointKind::Fixed => continue,
                 JointKind::Continuous => {
-                    let m = crate::urdf::MAX_LIMIT as f32;
+                    let m = MAX_LIMIT as f32;
                     (-m, m)
                 }
                 JointKind::Revolute | JointKind::Prismatic => (joint.lower, joint.upper),
@@ -158,5 +168,58 @@ impl ObjectModel {
     /// The joint whose child is `link`, if any.
     pub fn parent_joint_of(&self, link: usize) -> Option<usize> {
         self.joints.iter().position(|j| j.child == link)
+    }
+}
+
+/// How the object file sits in the scene, as the paper's code reads it from a
+/// PartNet-Mobility `object_meta_info.json`: a rotation from the file's axes
+/// (so the front faces the camera), a lift onto the floor and a global scale.
+/// Generated objects need none of it.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ObjectPose {
+    /// Quaternion (x, y, z, w) applied before the scene's yaw.
+    pub orientation: [f32; 4],
+    /// Lift of the base above the floor, in the file's units (times `scale`).
+    pub offset_z: f32,
+    /// Uniform scale of the whole object (PartNet-Mobility: 0.55).
+    pub scale: f32,
+}
+
+impl Default for ObjectPose {
+    fn default() -> Self {
+        Self {
+            orientation: [0.0, 0.0, 0.0, 1.0],
+            offset_z: 0.0,
+            scale: 1.0,
+        }
+    }
+}
+
+impl ObjectPose {
+    pub fn is_identity(&self) -> bool {
+        *self == Self::default()
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        let norm = Quat::from_array(self.orientation).length();
+        if !(self.orientation.iter().all(|v| v.is_finite()) && (norm - 1.0).abs() <= 0.01) {
+            return Err(SimError::InvalidScene(format!(
+                "`pose.orientation` must be a unit quaternion (x, y, z, w; norm 1 within 0.01), got {:?} (norm {norm})",
+                self.orientation
+            )));
+        }
+        if !(self.offset_z.is_finite() && self.offset_z.abs() <= MAX_COORDINATE) {
+            return Err(SimError::InvalidScene(format!(
+                "`pose.offset_z` must be within ±{MAX_COORDINATE} m, got {}",
+                self.offset_z
+            )));
+        }
+        if !(self.scale.is_finite() && self.scale > 0.0 && self.scale <= 1000.0) {
+            return Err(SimError::InvalidScene(format!(
+                "`pose.scale` must be in (0, 1000], got {}",
+                self.scale
+            )));
+        }
+        Ok(())
     }
 }

@@ -2,7 +2,9 @@
 //! replays bit-identically.
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Quat, Vec3};
+// The placement lives beside the model; scenes and files name it here too.
 use crate::model::ObjectModel;
+pub use crate::model::ObjectPose;
 use crate::objects::{self, Category};
 use crate::physics::PhysicsProfile;
 use crate::urdf::{MAX_COORDINATE, load_urdf};
@@ -103,59 +105,6 @@ pub struct GoalSpec {
     pub joint: usize,
     /// Joint values of the goal state.
     pub joints: Vec<f32>,
-}
-
-/// How the object file sits in the scene, as the paper's code reads it from a
-/// PartNet-Mobility `object_meta_info.json`: a rotation from the file's axes
-/// (so the front faces the camera), a lift onto the floor and a global scale.
-/// Generated objects need none of it.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct ObjectPose {
-    /// Quaternion (x, y, z, w) applied before the scene's yaw.
-    pub orientation: [f32; 4],
-    /// Lift of the base above the floor, in the file's units (times `scale`).
-    pub offset_z: f32,
-    /// Uniform scale of the whole object (PartNet-Mobility: 0.55).
-    pub scale: f32,
-}
-
-impl Default for ObjectPose {
-    fn default() -> Self {
-        Self {
-            orientation: [0.0, 0.0, 0.0, 1.0],
-            offset_z: 0.0,
-            scale: 1.0,
-        }
-    }
-}
-
-impl ObjectPose {
-    pub fn is_identity(&self) -> bool {
-        *self == Self::default()
-    }
-
-    pub fn validate(&self) -> Result<()> {
-        let norm = Quat::from_array(self.orientation).length();
-        if !(self.orientation.iter().all(|v| v.is_finite()) && (norm - 1.0).abs() <= 0.01) {
-            return Err(SimError::InvalidScene(format!(
-                "`pose.orientation` must be a unit quaternion (x, y, z, w; norm 1 within 0.01), got {:?} (norm {norm})",
-                self.orientation
-            )));
-        }
-        if !(self.offset_z.is_finite() && self.offset_z.abs() <= MAX_COORDINATE) {
-            return Err(SimError::InvalidScene(format!(
-                "`pose.offset_z` must be within ±{MAX_COORDINATE} m, got {}",
-                self.offset_z
-            )));
-        }
-        if !(self.scale.is_finite() && self.scale > 0.0 && self.scale <= 1000.0) {
-            return Err(SimError::InvalidScene(format!(
-                "`pose.scale` must be in (0, 1000], got {}",
-                self.scale
-            )));
-        }
-        Ok(())
-    }
 }
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -1,11 +1,19 @@
 //! curve.png and curve.svg: each policy's mean curve over its episodes, with
 //! the 95% interval of the mean as a band.
-use super::report::Curve;
 use anyhow::Result;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 use umpnet_sim::scene::Task;
+
+/// One policy's curve: per step, the mean over its episodes and the
+/// half-width of the mean's 95% interval (normal approximation).
+pub struct Curve {
+    pub policy: String,
+    pub episodes: usize,
+    pub mean: Vec<f64>,
+    pub half: Vec<f64>,
+}
 
 fn register_font() -> Result<()> {
     use std::sync::OnceLock;
@@ -155,6 +163,6 @@ pub fn plot_curves(
         curves,
         about,
     )?;
-    super::report::write_atomic(&out.join("curve.svg"), svg.as_bytes())?;
+    umpnet_sim::fsio::write_atomic(&out.join("curve.svg"), svg.as_bytes())?;
     Ok(vec!["curve.png", "curve.svg"])
 }

@@ -95,6 +95,7 @@ pub struct ScoredEpisode {
     pub metrics: Metrics,
 }
 
+use super::plot::Curve;
 use super::tables::{self, Cells, RowKey, metrics_of};
 
 impl Scored {
@@ -137,15 +138,6 @@ struct CurveSum {
     n: usize,
     at: Vec<(f64, f64)>,
     ended: Vec<(f64, f64)>,
-}
-
-/// One policy's curve: per step, the mean over its episodes and the
-/// half-width of the mean's 95% interval (normal approximation).
-pub struct Curve {
-    pub policy: String,
-    pub episodes: usize,
-    pub mean: Vec<f64>,
-    pub half: Vec<f64>,
 }
 
 impl CurveSum {

@@ -164,8 +164,8 @@ fn instance_seed(dataset_seed: u64, category: Category, index: u32) -> u64 {
 pub const PARTNET_SCALE: f32 = 0.55;
 
 /// The pose of every generated object: upright as written, PartNet's scale.
-pub fn generated_pose() -> crate::scene::ObjectPose {
-    crate::scene::ObjectPose {
+pub fn generated_pose() -> crate::model::ObjectPose {
+    crate::model::ObjectPose {
         scale: PARTNET_SCALE,
         ..Default::default()
     }

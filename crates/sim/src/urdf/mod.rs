@@ -19,7 +19,9 @@ use std::path::Path;
 
 // The model types live in `crate::model`; they are re-exported here because
 // the loader is where most users meet them.
-pub use crate::model::{JointKind, JointModel, LinkModel, ObjectModel, VisualModel};
+pub use crate::model::{
+    JointKind, JointModel, LinkModel, MAX_COORDINATE, MAX_LIMIT, ObjectModel, VisualModel,
+};
 
 /// Limits on what a URDF may hold. PartNet-Mobility's files are far below
 /// each (tens of KB, depth under 8, under 40 links); they bound the time and
@@ -33,11 +35,6 @@ pub const MAX_ATTRIBUTES: usize = 64;
 pub const MAX_LINKS: usize = 64;
 /// Longest number token (a numeric attribute's value is a few of these).
 pub(crate) const MAX_NUMBER_TOKEN: usize = 64;
-/// Largest coordinate (m) of any origin or vertex in a link's frame.
-pub const MAX_COORDINATE: f32 = 1000.0;
-/// Joint limits, in metres (prismatic) or radians (revolute): a wider range
-/// is a continuous joint written as a limited one, or a unit mistake.
-pub const MAX_LIMIT: f64 = 1000.0;
 /// A link's mass (kg): a milligram to a thousand tonnes. Outside it the
 /// solver's mass ratios (gripper against part) lose all precision in f32.
 pub const MIN_MASS: f64 = 1e-6;
