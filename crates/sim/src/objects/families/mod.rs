@@ -1,0 +1,44 @@
+//! Parametric families for the paper's 22 categories: a kit of parts
+//! (`parts`) and one recipe per category (`furniture`, `small`), each drawing
+//! its sizes, limits and colours from the instance's seeded RNG. Object
+//! frame: origin on the floor at the footprint centre, z up, front face
+//! toward -y (the camera).
+mod furniture;
+mod parts;
+mod small;
+
+use super::Category;
+use super::builder::Parts;
+use parts::{R, u};
+
+pub(crate) fn build(category: Category, rng: &mut R, test_instance: bool) -> Parts {
+    let mut p = Parts::default();
+    match category {
+        Category::Refrigerator => furniture::refrigerator(&mut p, rng),
+        Category::FoldingChair => furniture::folding_chair(&mut p, rng),
+        Category::Laptop => small::laptop(&mut p, rng),
+        Category::Stapler => small::stapler(&mut p, rng),
+        Category::TrashCan => small::trash_can(&mut p, rng),
+        Category::Microwave => furniture::microwave(&mut p, rng),
+        Category::Toilet => furniture::toilet(&mut p, rng),
+        Category::Window => furniture::window(&mut p, rng),
+        Category::StorageFurniture => furniture::cabinet(&mut p, rng),
+        Category::Switch => small::switch(&mut p, rng),
+        Category::Kettle => small::kettle(&mut p, rng),
+        Category::Toy => small::toy(&mut p, rng, test_instance),
+        Category::Box => {
+            let dims = (u(rng, 0.4, 0.65), u(rng, 0.35, 0.5), u(rng, 0.25, 0.45));
+            small::box_lid_family(&mut p, rng, dims, (1.6, 2.2))
+        }
+        Category::Phone => small::phone(&mut p, rng),
+        Category::Dishwasher => furniture::dishwasher(&mut p, rng),
+        Category::Safe => furniture::safe(&mut p, rng),
+        Category::Oven => furniture::oven(&mut p, rng),
+        Category::WashingMachine => furniture::washing_machine(&mut p, rng),
+        Category::Table => furniture::table(&mut p, rng),
+        Category::KitchenPot => small::kitchen_pot(&mut p, rng),
+        Category::Bucket => small::bucket(&mut p, rng),
+        Category::Door => furniture::door(&mut p, rng),
+    }
+    p
+}
