@@ -31,48 +31,9 @@ pub struct DecisionInput<'a> {
     pub mode: Mode,
 }
 
-/// Which candidate directions the runtime rules out before CEM chooses:
-/// the heuristics of the paper's `+HP` baselines, usable with any package.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum DirectionFilter {
-    /// Every direction may be chosen.
-    #[default]
-    None,
-    /// Only directions within 90 degrees of the surface normal at the grasp
-    /// (pull, never push into the part).
-    Normal90,
-    /// Only directions within 90 degrees of the previous action (the
-    /// paper's Where2Act+HP and UMPNet+HP): no back-and-forth. Exploration
-    /// only: a goal may lie behind the last move.
-    Prev90,
-}
-
-impl DirectionFilter {
-    pub const ALL: [DirectionFilter; 3] = [Self::None, Self::Normal90, Self::Prev90];
-
-    /// The name in model.json's `direction_filter` and on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::None => "none",
-            Self::Normal90 => "normal90",
-            Self::Prev90 => "prev90",
-        }
-    }
-}
-
-impl std::str::FromStr for DirectionFilter {
-    type Err = PolicyError;
-    fn from_str(s: &str) -> Result<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|f| f.name() == s)
-            .ok_or_else(|| {
-                PolicyError::Input(format!(
-                    "unknown direction filter `{s}`; expected none, normal90 or prev90"
-                ))
-            })
-    }
-}
+// The filter is one of model.json's closed sets; it is named here too,
+// where callers choose it.
+pub use crate::package::DirectionFilter;
 
 #[derive(Clone, Debug)]
 pub struct PositionChoice {
@@ -90,7 +51,7 @@ pub struct UmpnetPolicy {
 impl UmpnetPolicy {
     pub fn new(package: Arc<ModelPackage>) -> Self {
         // The loader has checked the name.
-        let direction_filter = package.meta.direction_filter.parse().unwrap_or_default();
+        let direction_filter = package.meta.direction_filter;
         Self {
             package,
             direction_filter,

@@ -1,113 +1,23 @@
 //! A model package: three ONNX networks and `model.json` (contract in
-//! docs/model-package.md), validated on load.
+//! docs/model-package.md), validated on load. `meta` reads and checks
+//! model.json; this module opens the networks and runs them.
+mod meta;
+
 use crate::error::{PolicyError, Result};
 use crate::observation::CHANNELS;
+pub use meta::{
+    Branch, Branches, DirectionFilter, FORMAT_VERSION, Files, InputSpec, MAX_EMBEDDING, MAX_SIDE,
+    ModelMeta, Variant,
+};
 use ndarray::{Array1, Array2, Array3, ArrayView2, ArrayView4, Axis};
 use ort::session::Session;
 use ort::value::TensorRef;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-/// Largest model.json read (the shipped ones are a few KB).
-const MAX_META_BYTES: u64 = 1 << 20;
-/// Largest input side a package may declare (the paper's images are 480x640).
-pub const MAX_SIDE: usize = 2048;
 /// How far below zero a regressed distance may come (metres) before the
 /// network counts as broken.
 pub const MAX_DISTANCE_NOISE: f32 = 0.05;
-/// Largest embedding width a package may declare.
-pub const MAX_EMBEDDING: usize = 1 << 16;
-
-pub const FORMAT_VERSION: u32 = 1;
-
-#[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
-pub struct InputSpec {
-    pub height: usize,
-    pub width: usize,
-    pub channels: usize,
-}
-
-#[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
-pub struct Files {
-    pub position: String,
-    pub direction_encoder: String,
-    pub direction_decoder: String,
-}
-
-/// `model.json`.
-#[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
-pub struct ModelMeta {
-    pub format: String,
-    pub version: u32,
-    #[serde(default = "default_variant")]
-    pub variant: String,
-    pub input: InputSpec,
-    pub embedding: usize,
-    pub branches: Vec<String>,
-    pub uses_reference: bool,
-    pub files: Files,
-    /// A [`crate::policy::DirectionFilter`] by name: "none", "normal90" (only
-    /// directions within 90 degrees of the surface normal at the grasp) or
-    /// "prev90" (within 90 degrees of the previous action).
-    #[serde(default = "default_filter")]
-    pub direction_filter: String,
-    /// The AoT class of each column of `aot_probs`: a permutation of -1, 0, +1
-    /// (the exporter writes [-1, 0, 1]). The runtime reorders the columns to
-    /// that canonical order, so packages of any class order mean the same.
-    #[serde(default = "default_aot_classes")]
-    pub aot_classes: Vec<i64>,
-    /// SignedDist packages: a predicted |signed distance| at or below this
-    /// means "no effective change" (AoT 0). The exporter writes half the
-    /// smallest move its training labels count (those labels put 0 for no
-    /// move and at least that move otherwise); packages without the field
-    /// keep δ = 0.15.
-    #[serde(default = "default_signed_distance_threshold")]
-    pub signed_distance_threshold: f32,
-    #[serde(default)]
-    pub provenance: serde_json::Value,
-    #[serde(default)]
-    pub evaluation: serde_json::Value,
-}
-
-fn default_aot_classes() -> Vec<i64> {
-    vec![-1, 0, 1]
-}
-
-fn default_signed_distance_threshold() -> f32 {
-    0.15
-}
-
-fn default_variant() -> String {
-    "umpnet".into()
-}
-
-fn default_filter() -> String {
-    "none".into()
-}
-
-/// Which decoder outputs the package has.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Branches {
-    /// Dist and AoT (UMPNet, SingleStep).
-    DistAot,
-    /// AoT only (the AoTOnly baseline).
-    AotOnly,
-    /// One signed distance (the SignedDist baseline).
-    SignedDist,
-    /// The probability that the action moves the object (the Where2Act-style baseline).
-    Binary,
-    /// No candidate scoring: the decoder regresses the direction that turns the
-    /// current observation into the reference one (the Inverse baseline, goal task only).
-    Inverse,
-}
-
-impl Branches {
-    /// Packages that act only toward a goal observation (no exploration behaviour).
-    pub fn goal_only(self) -> bool {
-        self == Branches::Inverse
-    }
-}
-
 /// Scores of candidate directions: distance >= 0 and AoT class probabilities (-1, 0, +1).
 #[derive(Clone, Debug)]
 pub struct DirectionScores {
@@ -134,7 +44,7 @@ fn ort_err(file: &Path, e: impl std::fmt::Display) -> PolicyError {
     PolicyError::Runtime(format!("{}: {e}", file.display()))
 }
 
-fn pkg_err(path: &Path, what: impl Into<String>) -> PolicyError {
+pub(crate) fn pkg_err(path: &Path, what: impl Into<String>) -> PolicyError {
     PolicyError::Package {
         path: path.to_path_buf(),
         what: what.into(),
@@ -191,136 +101,8 @@ impl ModelPackage {
         ort_library: Option<&Path>,
     ) -> Result<Self> {
         let meta_path = dir.join("model.json");
-        // A few KB: a FIFO or device would block or never end, and a huge
-        // file is not a model.json.
-        match std::fs::metadata(&meta_path) {
-            Ok(m) if !m.is_file() => {
-                return Err(pkg_err(
-                    &meta_path,
-                    "not a regular file (a folder, FIFO or device)",
-                ));
-            }
-            Ok(m) if m.len() > MAX_META_BYTES => {
-                return Err(pkg_err(
-                    &meta_path,
-                    format!(
-                        "{} bytes; model.json is limited to {MAX_META_BYTES}",
-                        m.len()
-                    ),
-                ));
-            }
-            _ => {}
-        }
-        let text = std::fs::read_to_string(&meta_path)
-            .map_err(|e| pkg_err(&meta_path, format!("cannot read: {e}")))?;
-        let meta: ModelMeta = serde_json::from_str(&text)
-            .map_err(|e| pkg_err(&meta_path, format!("invalid: {e}")))?;
-        if meta.format != "umpnet-model" {
-            return Err(pkg_err(
-                &meta_path,
-                format!("`format` is `{}`, expected `umpnet-model`", meta.format),
-            ));
-        }
-        if meta.version != FORMAT_VERSION {
-            return Err(pkg_err(
-                &meta_path,
-                format!(
-                    "`version` is {}, this runtime reads version {FORMAT_VERSION}",
-                    meta.version
-                ),
-            ));
-        }
-        if meta.input.channels != CHANNELS {
-            return Err(pkg_err(
-                &meta_path,
-                format!(
-                    "`input.channels` is {}, expected {CHANNELS}",
-                    meta.input.channels
-                ),
-            ));
-        }
-        if meta.input.height == 0 || meta.input.width == 0 || meta.embedding == 0 {
-            return Err(pkg_err(
-                &meta_path,
-                "`input.height`, `input.width` and `embedding` must be positive",
-            ));
-        }
-        // Checked before any tensor of these sizes is made: a declared
-        // 20000x20000 input would allocate 16 GB, u64::MAX would overflow.
-        if meta.input.height > MAX_SIDE || meta.input.width > MAX_SIDE {
-            return Err(pkg_err(
-                &meta_path,
-                format!(
-                    "`input` is {}x{}; each side is limited to {MAX_SIDE} (the paper's is 480x640)",
-                    meta.input.height, meta.input.width
-                ),
-            ));
-        }
-        if meta.embedding > MAX_EMBEDDING {
-            return Err(pkg_err(
-                &meta_path,
-                format!(
-                    "`embedding` is {}; limited to {MAX_EMBEDDING}",
-                    meta.embedding
-                ),
-            ));
-        }
-        let has = |b: &str| meta.branches.iter().any(|x| x == b);
-        let (branches, decoder_outputs) = if has("dist") && has("aot") {
-            (
-                Branches::DistAot,
-                vec!["distance".to_string(), "aot_probs".to_string()],
-            )
-        } else if has("aot") {
-            (Branches::AotOnly, vec!["aot_probs".to_string()])
-        } else if has("signed_dist") {
-            (Branches::SignedDist, vec!["signed_distance".to_string()])
-        } else if has("binary") {
-            (Branches::Binary, vec!["success_prob".to_string()])
-        } else if has("inverse") {
-            (Branches::Inverse, vec!["predicted_direction".to_string()])
-        } else {
-            return Err(pkg_err(
-                &meta_path,
-                format!(
-                    "`branches` {:?}: expected [dist, aot], [aot], [signed_dist], [binary] or [inverse]",
-                    meta.branches
-                ),
-            ));
-        };
-        let mut classes = meta.aot_classes.clone();
-        classes.sort_unstable();
-        if classes != [-1, 0, 1] {
-            return Err(pkg_err(
-                &meta_path,
-                format!(
-                    "`aot_classes` is {:?}, expected an order of -1, 0 and 1 (e.g. [-1, 0, 1])",
-                    meta.aot_classes
-                ),
-            ));
-        }
-        if !(meta.signed_distance_threshold.is_finite() && meta.signed_distance_threshold >= 0.0) {
-            return Err(pkg_err(
-                &meta_path,
-                format!(
-                    "`signed_distance_threshold` is {}, expected a finite number >= 0",
-                    meta.signed_distance_threshold
-                ),
-            ));
-        }
-        if meta
-            .direction_filter
-            .parse::<crate::policy::DirectionFilter>()
-            .is_err()
-        {
-            return Err(pkg_err(
-                &meta_path,
-                format!(
-                    "`direction_filter` is `{}`, expected none, normal90 or prev90",
-                    meta.direction_filter
-                ),
-            ));
-        }
+        let meta = ModelMeta::read(&meta_path)?;
+        let (branches, decoder_outputs) = meta.decoder(&meta_path)?;
         let env = crate::runtime::environment(ort_library)?;
         let (h, w, e) = (
             meta.input.height as i64,
