@@ -5,6 +5,7 @@ pub mod episode;
 pub mod learned;
 pub mod policy;
 pub mod protocol;
+pub mod rewards;
 pub mod scripted;
 pub mod train_env;
 

@@ -579,9 +579,44 @@ fn categories() -> Vec<(&'static str, &'static str, usize)> {
         .collect()
 }
 
+/// The reward, success and farthest distance of one direction step, by the
+/// paper's protocol as `umpnet eval` applies it (umpnet_eval::rewards):
+/// what gymnasium's environments return, defined once, in Rust.
+#[pyfunction]
+#[pyo3(signature = (task, before, after, start, farthest, lower, upper, threshold, goal))]
+#[allow(clippy::too_many_arguments)]
+fn score_step(
+    task: &str,
+    before: f32,
+    after: f32,
+    start: f32,
+    farthest: f32,
+    lower: f32,
+    upper: f32,
+    threshold: f32,
+    goal: f32,
+) -> PyResult<(f32, bool, f32)> {
+    let task: Task = task
+        .parse()
+        .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
+    let s = umpnet_eval::rewards::score_step(
+        task,
+        before,
+        after,
+        start,
+        farthest,
+        (lower, upper),
+        threshold,
+        goal,
+    );
+    Ok((s.reward, s.success, s.farthest))
+}
+
 #[pymodule]
 fn _umpnet(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(categories, m)?)?;
+    m.add_function(wrap_pyfunction!(score_step, m)?)?;
+    m.add("DELTA", umpnet_sim::env::DELTA)?;
     m.add_class::<Env>()?;
     m.add_class::<physics::Articulation>()?;
     m.add_class::<vec_env::VecEnv>()?;

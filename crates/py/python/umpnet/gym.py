@@ -39,9 +39,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ._umpnet import Env, VecEnv, categories
-
-DELTA = 0.15
+from ._umpnet import Env, VecEnv, categories, score_step
 
 # The paper's per-category budgets of direction actions (defined once, in Rust).
 BUDGETS = {name: budget for name, _, budget in categories()}
@@ -51,19 +49,19 @@ MAX_BUDGET = max(BUDGETS.values())
 def score(task, before, after, start, farthest, lower, upper, threshold, goal):
     """Reward and success of direction steps per the paper's protocol, for
     scalars or arrays alike: (reward in units of delta, success, the new
-    farthest distance from the start). Success ends the episode."""
-    if task == "exploration":
-        distance = np.abs(after - start)
-        reward = np.maximum(0.0, distance - farthest) / DELTA
-        at_limit = (distance > threshold) & ((after < lower + threshold) | (after > upper - threshold))
-        return reward, at_limit, np.maximum(farthest, distance)
-    reward = (np.abs(before - goal) - np.abs(after - goal)) / DELTA
-    reached = (
-        (np.abs(after - goal) < threshold)
-        | ((before > goal) & (after < goal + threshold))
-        | ((before < goal) & (after > goal - threshold))
+    farthest distance from the start). Success ends the episode. The rule is
+    Rust's (``umpnet_eval::rewards``), the one ``umpnet eval`` counts by."""
+    arrays = np.broadcast_arrays(
+        *(np.asarray(v, np.float64) for v in (before, after, start, farthest, lower, upper, threshold, goal))
     )
-    return reward, reached, farthest
+    out = [score_step(task, *(float(a[i]) for a in arrays)) for i in np.ndindex(arrays[0].shape)]
+    shape = arrays[0].shape
+    reward = np.array([o[0] for o in out], np.float64).reshape(shape)
+    success = np.array([o[1] for o in out], bool).reshape(shape)
+    farther = np.array([o[2] for o in out], np.float64).reshape(shape)
+    if not shape:
+        return reward[()], success[()], farther[()]
+    return reward, success, farther
 
 
 class UmpnetEnv(gym.Env):
