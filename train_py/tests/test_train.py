@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import umpnet
 from umpnet_train import collect, train
-from umpnet_train.config import config_from_checkpoint, make_config
+from umpnet_train.config import Config, config_from_checkpoint, make_config
 from umpnet_train.replay import Replay
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -26,13 +26,31 @@ def test_presets_and_config_errors():
         make_config("huge")
     with pytest.raises(ValueError, match="unknown config fields"):
         make_config("smoke", lr_typo=1.0)
-    with pytest.raises(ValueError, match="random_grasp 'objects': expected 'released' or 'object'"):
+    with pytest.raises(ValueError, match="random_grasp 'objects': expected one of 'released', 'object'"):
         make_config("smoke", random_grasp="objects")
     # A checkpoint from before the field resumes with the grasps it was trained with.
     saved = dataclasses.asdict(make_config("cpu-small"))
     assert config_from_checkpoint(saved).random_grasp == "released"
     del saved["random_grasp"]
     assert config_from_checkpoint(saved).random_grasp == "object"
+
+
+def test_every_config_field_is_a_flag_with_its_choices(capsys):
+    """The command line is generated from Config: each field is one flag,
+    parsed to the field's type, and a closed set's other names are refused."""
+    for f in dataclasses.fields(Config):
+        if not f.metadata.get("cli", True):
+            continue
+        default = f.default
+        text = ",".join(str(v) for v in default) if isinstance(default, tuple) else str(default)
+        flag = "--" + f.name.replace("_", "-")
+        argv = ["--out", "x", flag] if isinstance(default, bool) else ["--out", "x", flag, text]
+        cfg, _ = train.parse_args(argv)
+        assert getattr(cfg, f.name) == (True if isinstance(default, bool) else default), f.name
+        assert f.metadata["help"], f.name
+    with pytest.raises(SystemExit) as e:
+        train.parse_args(["--out", "x", "--learner", "fp64"])
+    assert e.value.code == 2 and "invalid choice: 'fp64'" in capsys.readouterr().err
 
 
 def test_direction_widths_flag(capsys):

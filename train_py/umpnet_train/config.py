@@ -5,83 +5,124 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+# The closed sets a field may take, checked by make_config and offered as
+# the command line's choices.
+VARIANTS = ("umpnet", "single-step", "aot-only", "signed-dist", "where2act", "inverse")
+LEARNER_MODES = ("fp32", "channels-last", "bf16", "compile")
+
+
+def option(default, help: str, choices: tuple | None = None, cli: bool = True, **kw):
+    """A Config field with its command-line help (and closed set of choices):
+    `train` builds one flag per field from these, so a field is declared once."""
+    meta = {"help": help, "choices": choices, "cli": cli}
+    return field(default=default, metadata=meta, **kw)
+
 
 @dataclass
 class Config:
     # Observation and networks
-    height: int = 480
-    width: int = 640
-    position_widths: tuple[int, ...] = (32, 64, 128, 256)
-    direction_widths: tuple[int, ...] = (32, 64, 128, 256)
-    embedding: int = 64
-    action_embedding: int = 32
-    # "context": difference channels, global context, bilinear heads (models.py);
-    # "plain": the direction network of the packages shipped before it.
-    direction_net: str = "context"
-    decoder_hidden: int = 1024  # width of the decoder MLPs (the paper's appendix)
-    variant: str = "umpnet"  # umpnet | single-step | aot-only | signed-dist | where2act | inverse
+    height: int = option(480, "observation height (the paper's 480)")
+    width: int = option(640, "observation width (the paper's 640)")
+    position_widths: tuple[int, ...] = option((32, 64, 128, 256), "PositionNet U-Net widths per level")
+    direction_widths: tuple[int, ...] = option(
+        (32, 64, 128, 256), "DirectionNet U-Net widths per level, e.g. 8,16,32,64"
+    )
+    embedding: int = option(64, "width of the direction encoder's per-pixel embedding")
+    action_embedding: int = option(32, "width of the encoded candidate direction")
+    direction_net: str = option(
+        "context",
+        "context: difference channels, global context and bilinear heads (models.py); "
+        "plain: the direction network of the packages shipped before it",
+        choices=("context", "plain"),
+    )
+    decoder_hidden: int = option(1024, "width of the decoder MLPs (the paper's appendix)")
+    variant: str = option("umpnet", "the method: UMPNet or one of the paper's baselines", choices=VARIANTS)
     # Data collection (the released code: 16 environments, 6400-sample FIFO replay buffer)
-    num_envs: int = 16
-    replay_size: int = 6400
-    categories: list[str] = field(default_factory=list)  # empty: the 12 training categories
-    physics: str = "reference"  # the paper's simulator; "ideal": every pull follows the joint's path
-    # "reference": the released code's thresholds (0.1 rad / 0.05 m, range/3.5) and a
-    # contradictory policy that turns back at the joint limit; "delta": δ thresholds and
-    # a turn at half the sequence (the packages shipped before).
-    labels: str = "reference"
-    # Dense labels: at each visited state also simulate this many directions (half the
-    # policy's best candidates, half uniform) and train the decoder on all of them.
-    # 0: only the executed action, as the paper.
-    dense_labels: int = 0
-    dense_states: int = 8  # states per dense batch (all their labels in one encoder pass)
-    # Dense articulation supervision (beyond the paper; FlowBot3D's articulation flow):
-    # weight of the auxiliary losses that teach the position net each pixel's flow and
-    # movable mask, and the direction encoder's per-pixel embedding the flow. 0: off.
-    aux_fields: float = 0.0
-    # Exploratory grasps: "released" (the released code's rule: a uniform pixel,
-    # kept above the floor or with probability 0.1) or "object" (a uniform
-    # object pixel: every grasp can move something; the smoke preset's, whose
-    # two epochs must collect moves).
-    random_grasp: str = "released"
-    # The position net is not trained: its weights come from another run's checkpoint
-    # (train --position-from), and the direction nets learn from that net's grasps.
-    freeze_position: bool = False
+    num_envs: int = option(16, "environments collecting in parallel (the released code's 16)")
+    replay_size: int = option(6400, "samples in each FIFO replay buffer (the released code's 6400)")
+    categories: list[str] = field(
+        default_factory=list,
+        metadata={"help": "categories to train on (empty: the 12 training categories)", "choices": None, "cli": False},
+    )
+    physics: str = option(
+        "reference",
+        "physics profile of the environments: reference (the paper's simulator) or ideal "
+        "(every pull follows the joint's path)",
+        choices=("reference", "ideal"),
+    )
+    labels: str = option(
+        "reference",
+        "reference: the released code's label thresholds (0.1 rad / 0.05 m, range/3.5) and its "
+        "contradictory policy that turns back at the joint limit; delta: δ thresholds and a turn at half "
+        "the sequence (the packages shipped before)",
+        choices=("reference", "delta"),
+    )
+    dense_labels: int = option(
+        0,
+        "also simulate K directions at every visited state (half the policy's best candidates, half "
+        "uniform) and train the decoder on all of them (0: off, the paper)",
+    )
+    dense_states: int = option(8, "states per dense batch (all their labels in one encoder pass)")
+    aux_fields: float = option(
+        0.0,
+        "weight of the auxiliary articulation-flow losses (FlowBot3D's flow, beyond the paper): the "
+        "position net learns each pixel's flow and movable mask, the direction encoder's embedding the "
+        "flow (0: off, the paper)",
+    )
+    random_grasp: str = option(
+        "released",
+        "exploratory grasps: released (a uniform pixel, kept above the floor or with probability 0.1, "
+        "as the released code) or object (a uniform object pixel, so every grasp can move something)",
+        choices=("released", "object"),
+    )
+    freeze_position: bool = option(
+        False,
+        "the position net is not trained: its weights come from another run (train --position-from)",
+        cli=False,
+    )
     # Epsilon-greedy schedules: random actions (and no training of that network)
     # until `*_start_epoch`, then a linear decay over `*_decay_epochs`.
-    position_epsilon: tuple[float, float] = (1.0, 0.1)
-    position_start_epoch: int = 500
-    position_decay_epochs: int = 300
-    direction_epsilon: tuple[float, float] = (1.0, 0.2)
-    direction_start_epoch: int = 800
-    direction_decay_epochs: int = 500
-    # Sequence-length curriculum: start, step, every, after, max
-    seq_start: int = 4
-    seq_step: int = 2
-    seq_every: int = 400
-    seq_after: int = 1000
-    seq_max: int = 20
+    position_epsilon: tuple[float, float] = option((1.0, 0.1), "position epsilon: start,end")
+    position_start_epoch: int = option(500, "epoch the position net starts to act and learn")
+    position_decay_epochs: int = option(300, "epochs of the position epsilon's decay")
+    direction_epsilon: tuple[float, float] = option((1.0, 0.2), "direction epsilon: start,end")
+    direction_start_epoch: int = option(800, "epoch the direction nets start to act and learn")
+    direction_decay_epochs: int = option(500, "epochs of the direction epsilon's decay")
+    # Sequence-length curriculum
+    seq_start: int = option(4, "sequence length at the start of the curriculum")
+    seq_step: int = option(2, "sequence length added at each curriculum step")
+    seq_every: int = option(400, "epochs between curriculum steps")
+    seq_after: int = option(1000, "epoch of the first curriculum step")
+    seq_max: int = option(20, "longest sequence")
     # Optimisation
-    epochs: int = 5000
-    batch_position: int = 16  # balanced 1:1 positive/negative
-    batch_direction: int = 24  # balanced 1:1:1 over AoT classes
-    iterations_per_epoch: int = 8
-    lr: float = 8e-3
-    adam_betas: tuple[float, float] = (0.9, 0.95)
-    lr_decay_every: int = 500
-    lr_decay: float = 0.5
-    dist_loss_weight: float = 100.0
+    epochs: int = option(5000, "epochs to train")
+    batch_position: int = option(16, "position batch, balanced 1:1 positive/negative")
+    batch_direction: int = option(24, "direction batch, balanced 1:1:1 over AoT classes")
+    iterations_per_epoch: int = option(8, "updates per epoch")
+    lr: float = option(8e-3, "learning rate")
+    adam_betas: tuple[float, float] = option((0.9, 0.95), "Adam's betas: b1,b2")
+    lr_decay_every: int = option(500, "epochs between learning-rate decays")
+    lr_decay: float = option(0.5, "learning-rate factor at each decay")
+    dist_loss_weight: float = option(100.0, "weight of the distance loss against the AoT loss")
     # Bookkeeping
-    seed: int = 0
-    checkpoint_every: int = 50
-    save_replay: bool = False  # also write OUT/replay.npz at checkpoints (large: 6400 images per ring)
-    eval_every: int = 0
-    eval_episodes: int = 5  # per category in `umpnet eval`; twice as many per split in the diagnostics
-    threads: int = 2
-    renderer: str = "auto"
-    device: str = "auto"  # auto (cuda when available), cpu, cuda
-    # How updates run (train.LEARNER_MODES): fp32, channels-last, bf16, compile.
-    # Weights and checkpoints are fp32 whatever the mode.
-    learner: str = "fp32"
+    seed: int = option(0, "seed of every random choice of the run")
+    checkpoint_every: int = option(50, "epochs between checkpoints")
+    save_replay: bool = option(
+        False,
+        "write the replay buffer beside each checkpoint (large: 6400 images per ring), so --resume "
+        "continues on the same data",
+    )
+    eval_every: int = option(0, "epochs between `umpnet eval` runs (0: never)")
+    eval_episodes: int = option(5, "episodes per category in `umpnet eval`; twice as many per split in the diagnostics")
+    threads: int = option(2, "CPU threads for PyTorch and the environments")
+    renderer: str = option("auto", "renderer of the environments", choices=("auto", "wgpu", "cpu"))
+    device: str = option("auto", "auto (cuda when available), cpu or cuda")
+    learner: str = option(
+        "fp32",
+        "how updates run: fp32 (the fastest on a CPU without AMX, see bench_learner), channels-last, "
+        "bf16 autocast, compile; weights and checkpoints are fp32 whatever the mode",
+        choices=LEARNER_MODES,
+    )
 
 
 PRESETS = {
@@ -143,14 +184,11 @@ def make_config(preset: str = "paper", **overrides) -> Config:
     unknown = set(values) - names
     if unknown:
         raise ValueError(f"unknown config fields {sorted(unknown)}")
-    if values.get("random_grasp", "released") not in ("released", "object"):
-        raise ValueError(f"random_grasp {values['random_grasp']!r}: expected 'released' or 'object'")
-    if values.get("direction_net", "context") not in ("context", "plain"):
-        raise ValueError(f"direction_net {values['direction_net']!r}: expected 'context' or 'plain'")
-    if values.get("labels", "reference") not in ("reference", "delta"):
-        raise ValueError(f"labels {values['labels']!r}: expected 'reference' or 'delta'")
-    if values.get("learner", "fp32") not in ("fp32", "channels-last", "bf16", "compile"):
-        raise ValueError(f"learner {values['learner']!r}: expected fp32, channels-last, bf16 or compile")
+    for f in dataclasses.fields(Config):
+        choices = f.metadata.get("choices")
+        if choices and f.name in values and values[f.name] not in choices:
+            expected = ", ".join(repr(c) for c in choices)
+            raise ValueError(f"{f.name} {values[f.name]!r}: expected one of {expected}")
     if values.get("dense_labels", 0) < 0:
         raise ValueError(f"dense_labels {values['dense_labels']}: expected 0 (off) or a positive count")
     return Config(**values)
@@ -175,3 +213,56 @@ def config_from_checkpoint(saved: dict) -> Config:
     tuples = {f.name for f in dataclasses.fields(Config) if isinstance(f.default, tuple)}
     values = {k: tuple(v) if k in tuples and isinstance(v, list) else v for k, v in saved.items()}
     return Config(**{**_BEFORE_FIELDS, **values})
+
+
+def add_config_arguments(parser) -> None:
+    """One flag per Config field (`--num-envs` for num_envs), with the field's
+    help and choices. Unset flags stay None, so the preset's values hold."""
+    for f in dataclasses.fields(Config):
+        if not f.metadata.get("cli", True):
+            continue
+        flag = "--" + f.name.replace("_", "-")
+        kind = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+        common = {"help": f.metadata.get("help"), "default": None}
+        if kind == "bool":
+            parser.add_argument(flag, action="store_const", const=True, **common)
+        elif kind.startswith("tuple"):
+            item = float if "float" in kind else int
+            size = None if "..." in kind else kind.count(",") + 1
+            metavar = "A,B,.." if size is None else ",".join("AB"[:size])
+            parser.add_argument(flag, type=_tuple_of(item, f.name, size), metavar=metavar, **common)
+        else:
+            parser.add_argument(
+                flag, type={"int": int, "float": float}.get(kind, str), choices=f.metadata.get("choices"), **common
+            )
+
+
+def config_overrides(namespace) -> dict:
+    """The Config fields a parsed command line set."""
+    names = {f.name for f in dataclasses.fields(Config)}
+    return {k: v for k, v in vars(namespace).items() if k in names and v is not None}
+
+
+def _tuple_of(item, name, size=None):
+    """Comma-separated numbers: positive integers (widths), or non-negative
+    reals (epsilons, betas); `size` of them when the field's tuple is fixed."""
+
+    def parse(text):
+        try:
+            values = tuple(item(x) for x in text.split(","))
+        except ValueError:
+            values = ()
+        positive = item is int
+        ok = values and (min(values) > 0 if positive else min(values) >= 0) and size in (None, len(values))
+        if not ok:
+            import argparse
+
+            what = "positive integers" if positive else "non-negative numbers"
+            count = f"{size} " if size else ""
+            raise argparse.ArgumentTypeError(
+                f"{name} {text!r}: expected {count}{what} separated by commas, e.g. {'8,16,32' if positive else '0.9,0.999'}"
+            )
+        return values
+
+    parse.__name__ = f"{item.__name__} list"
+    return parse

@@ -31,7 +31,7 @@ from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
 from .collect import TRAIN_CATEGORIES, collect, device, sequence_length, set_device, to_long, to_torch
-from .config import config_from_checkpoint, make_config
+from .config import LEARNER_MODES, add_config_arguments, config_from_checkpoint, config_overrides, make_config
 from .export import export_model
 from .models import UMPNet, UNet
 from .replay import DenseReplay, Replay
@@ -147,7 +147,6 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
 # How the learner runs its update (bench_learner measures each on this machine):
 # fp32 eager; channels-last memory format; bf16 autocast of the forward passes;
 # torch.compile of the U-Nets and decoder.
-LEARNER_MODES = ("fp32", "channels-last", "bf16", "compile")
 
 
 class Learner:
@@ -227,18 +226,6 @@ def git_commit() -> str:
     return f"{head}-dirty" if changed else head
 
 
-def _widths(parser, text):
-    if text is None:
-        return None
-    try:
-        widths = tuple(int(x) for x in text.split(","))
-    except ValueError:
-        widths = ()
-    if not widths or min(widths) <= 0:
-        parser.error(f"--direction-widths {text!r}: expected positive integers separated by commas, e.g. 8,16,32")
-    return widths
-
-
 def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--preset", default="cpu-small", help="paper, cpu-small or smoke")
@@ -259,51 +246,8 @@ def parse_args(argv=None):
         help="take the position net's weights from CHECKPOINT (same architecture) and do not train it: "
         "the direction nets then learn from that net's grasps; pass it again when resuming",
     )
-    p.add_argument("--variant", choices=["umpnet", "single-step", "aot-only", "signed-dist", "where2act", "inverse"])
-    p.add_argument("--epochs", type=int)
-    p.add_argument("--seed", type=int)
-    p.add_argument("--num-envs", type=int)
-    p.add_argument("--threads", type=int)
-    p.add_argument("--eval-every", type=int, help="epochs between `umpnet eval` runs (0: never)")
-    p.add_argument("--renderer", choices=["auto", "wgpu", "cpu"])
-    p.add_argument("--physics", choices=["reference", "ideal"], help="physics profile of the environments")
-    p.add_argument(
-        "--labels",
-        choices=["reference", "delta"],
-        help="reference (default): the released code's label thresholds and contradictory policy; delta: δ",
-    )
-    p.add_argument(
-        "--dense-labels",
-        type=int,
-        metavar="K",
-        help="also simulate K directions at every visited state and train on all of them (0: off, the paper)",
-    )
-    p.add_argument(
-        "--aux-fields",
-        type=float,
-        metavar="WEIGHT",
-        help="weight of the auxiliary articulation-flow losses on the position net and the direction "
-        "encoder (the simulator's dense per-pixel labels; 0: off, the paper)",
-    )
-    p.add_argument("--device", help="auto, cpu or cuda")
-    p.add_argument(
-        "--learner",
-        choices=LEARNER_MODES,
-        help="how updates run: fp32 (default; the fastest on a CPU without AMX, see bench_learner), "
-        "channels-last, bf16 autocast, compile",
-    )
-    p.add_argument("--direction-widths", help="DirectionNet U-Net widths per level, e.g. 8,16,32,64")
-    p.add_argument(
-        "--direction-net",
-        choices=["context", "plain"],
-        help="context (default): difference channels, global context and bilinear heads; plain: the earlier network",
-    )
-    p.add_argument(
-        "--save-replay",
-        action="store_const",
-        const=True,
-        help="write the replay buffer beside each checkpoint, so --resume continues on the same data",
-    )
+    # One flag per Config field, with its help and choices (config.py).
+    add_config_arguments(p)
     p.add_argument(
         "--ray",
         type=int,
@@ -320,26 +264,10 @@ def parse_args(argv=None):
     if a.ray and a.aux_fields:
         p.error("--aux-fields collects the fields in this process: use it without --ray")
     try:
-        cfg = make_config(
-            a.preset,
-            variant=a.variant,
-            epochs=a.epochs,
-            seed=a.seed,
-            num_envs=a.num_envs,
-            threads=a.threads,
-            eval_every=a.eval_every,
-            renderer=a.renderer,
-            physics=a.physics,
-            labels=a.labels,
-            dense_labels=a.dense_labels,
-            aux_fields=a.aux_fields,
-            device=a.device,
-            learner=a.learner,
-            save_replay=a.save_replay,
-            direction_widths=_widths(p, a.direction_widths),
-            direction_net=a.direction_net,
-            freeze_position=True if a.position_from is not None else None,
-        )
+        overrides = config_overrides(a)
+        if a.position_from is not None:
+            overrides["freeze_position"] = True
+        cfg = make_config(a.preset, **overrides)
     except ValueError as e:
         p.error(str(e))
     return cfg, a
