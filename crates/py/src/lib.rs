@@ -401,7 +401,7 @@ impl Env {
 }
 
 /// The Rust policy runtime on a model package.
-#[pyclass(module = "umpnet")]
+#[pyclass(module = "umpnet", subclass, name = "Policy")]
 struct Policy {
     inner: UmpnetPolicy,
     rng: rand_chacha::ChaCha8Rng,

@@ -1,6 +1,8 @@
 """The gymnasium VectorEnv over the Rust VecEnv: the same episodes, rewards,
 ends and observations as separate UmpnetEnvs, with next-step autoreset."""
 
+from pathlib import Path
+
 import gymnasium as gym  # a requirement (train_py/requirements.txt), never skipped
 import numpy as np
 import pytest
@@ -122,3 +124,40 @@ def test_mixed_step_refuses_bad_shapes_and_pixels_by_name():
         vec.step_mixed(**{**ok, "reset": np.zeros(2, np.int64)})
     with pytest.raises(ValueError, match="task"):
         UmpnetVectorEnv(num_envs=2, task="explore")
+
+
+def test_vector_rendering_follows_gymnasium():
+    venv = gym.make_vec("umpnet/Explore-v0", num_envs=2, resolution=RES, category=CATEGORIES, render_mode="rgb_array")
+    assert venv.render_mode == "rgb_array" and venv.metadata["render_fps"] > 0
+    venv.reset(seed=3)
+    frames = venv.render()
+    assert frames.shape == (2, *RES, 3) and frames.dtype == np.uint8 and frames.max() > 0
+    with pytest.raises(ValueError, match="render_mode 'human'"):
+        gym.make_vec("umpnet/Explore-v0", num_envs=1, resolution=RES, render_mode="human")
+    env = gym.make("umpnet/Explore-v0", resolution=RES, render_mode="rgb_array")
+    env.reset(seed=0)
+    assert env.render().shape == (*RES, 3) and env.metadata["render_fps"] == venv.metadata["render_fps"]
+
+
+def test_policy_act_drives_the_gym_environments_from_the_observation_alone():
+
+    shipped = str(Path(__file__).resolve().parents[3] / "models" / "umpnet-small")
+    policy = umpnet.Policy(shipped, seed=0)
+    env = gym.make("umpnet/Goal-v0", resolution=policy.resolution, category=["Door"])
+    successes, valid = 0, 0
+    for seed in range(6):
+        obs, _ = env.reset(seed=seed)
+        action = policy.act(obs, "goal")
+        assert env.action_space.contains(action)
+        obs, _, terminated, truncated, info = env.step(action)
+        valid += bool(info["valid"])
+        while not (terminated or truncated):
+            action = policy.act(obs, "goal")
+            assert action["phase"] == 1 and abs(np.linalg.norm(action["direction"]) - 1) < 1e-4
+            obs, _, terminated, truncated, info = env.step(action)
+        successes += bool(info["success"])
+    # The shipped model grasps the door and reaches some goals (0.56 goal
+    # success on the test categories; doors are among its better ones).
+    assert valid >= 5 and successes >= 1, (valid, successes)
+    with pytest.raises(ValueError, match="task 'push'"):
+        policy.act(obs, "push")

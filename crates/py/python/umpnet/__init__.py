@@ -3,7 +3,8 @@
 - ``Env``: one simulated scene; ``reset``, ``step_position(row, col)``,
   ``step_direction(xyz)``; observations are dicts of numpy arrays.
 - ``VecEnv``: n environments stepped in parallel Rust threads.
-- ``Policy``: the Rust policy runtime on an exported model package.
+- ``Policy``: the Rust policy runtime on an exported model package;
+  ``Policy.act(obs, task)`` drives ``umpnet.gym``'s environments.
 - ``Articulation``: the physics of one URDF object (grasp at a world point,
   move the gripper), under the ``reference`` or ``ideal`` profile.
 - ``categories()``: (name, split, step budget) of the 22 object categories.
@@ -18,6 +19,7 @@ import tempfile
 # is unsound once other threads run.
 os.environ.setdefault("XDG_RUNTIME_DIR", tempfile.gettempdir())
 
-from ._umpnet import Articulation, Env, Policy, VecEnv, __version__, categories
+from ._umpnet import Articulation, Env, VecEnv, __version__, categories
+from .policy import Policy
 
 __all__ = ["Articulation", "Env", "Policy", "VecEnv", "__version__", "categories"]

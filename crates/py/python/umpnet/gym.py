@@ -64,8 +64,17 @@ def score(task, before, after, start, farthest, lower, upper, threshold, goal):
     return reward, success, farther
 
 
+# One frame per action: a recording plays an episode at a readable pace.
+RENDER_FPS = 4
+
+
+def rgb(image) -> np.ndarray:
+    """The colour channels of observations (..., H, W, 10) as uint8 RGB."""
+    return (np.clip(np.asarray(image)[..., 3:6], 0, 1) * 255).astype(np.uint8)
+
+
 class UmpnetEnv(gym.Env):
-    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"]}
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": RENDER_FPS}
 
     def __init__(self, task="exploration", max_steps=None, resolution=(96, 128), render_mode=None, **env_kwargs):
         self.task, self.max_steps, self.render_mode = task, max_steps, render_mode
@@ -172,7 +181,7 @@ class UmpnetEnv(gym.Env):
     def render(self):
         if self._obs is None:
             return None
-        return (np.clip(self._obs["image"][..., 3:6], 0, 1) * 255).astype(np.uint8)
+        return rgb(self._obs["image"])
 
 
 class UmpnetVectorEnv(VectorEnv):
@@ -189,7 +198,11 @@ class UmpnetVectorEnv(VectorEnv):
     fresh arrays unless ``copy=False`` (then the VecEnv's reused buffers).
     """
 
-    metadata: ClassVar[dict] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata: ClassVar[dict] = {
+        "render_modes": ["rgb_array"],
+        "render_fps": RENDER_FPS,
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
 
     def __init__(
         self,
@@ -198,8 +211,13 @@ class UmpnetVectorEnv(VectorEnv):
         max_steps=None,
         max_episode_steps=None,
         resolution=(96, 128),
+        render_mode=None,
         **env_kwargs,
     ):
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
+        self.render_mode = render_mode
+        self._last = None
         if task not in ("exploration", "goal"):
             raise ValueError(f"task {task!r}: expected 'exploration' or 'goal'")
         self.num_envs, self.task, self.max_steps = int(num_envs), task, max_steps
@@ -239,6 +257,7 @@ class UmpnetVectorEnv(VectorEnv):
         # The budgets come with the next step's info; until then, the scenes'.
         self._budget[:] = [BUDGETS.get(s.get("category"), 10) for s in self._vec.scenes]
         info = {"success": np.zeros(n, bool), "elapsed_steps": np.zeros(n, np.int64)}
+        self._last = obs
         return self._observation(obs), info
 
     def step(self, actions):
@@ -296,7 +315,14 @@ class UmpnetVectorEnv(VectorEnv):
             "reset": was_reset,
             **{k: raw[k] for k in ("valid", "joint", "joint_before", "joint_after", "r_dist", "aot", "suction_lost")},
         }
+        self._last = obs
         return self._observation(obs), reward, terminated, truncated, info
+
+    def render(self):
+        """Each environment's current colour image, (num_envs, H, W, 3) uint8."""
+        if self._last is None:
+            return None
+        return rgb(self._last["image"])
 
     def __repr__(self):
         return f"UmpnetVectorEnv(num_envs={self.num_envs}, task={self.task!r})"
