@@ -93,7 +93,11 @@ class UmpnetEnv(gym.Env):
     @staticmethod
     def spaces(h, w):
         """(observation space, action space) of one environment at h x w."""
-        image = spaces.Box(-np.inf, np.inf, shape=(h, w, 10), dtype=np.float32)
+        # Per channel: world x, y, z (within the simulator's 1000 m), colour in
+        # [0, 1], unit normal, depth in metres (0 where nothing is seen).
+        low = np.array([-1000.0] * 3 + [0.0] * 3 + [-1.0] * 3 + [0.0], np.float32)
+        high = np.array([1000.0] * 3 + [1.0] * 3 + [1.0] * 3 + [1000.0], np.float32)
+        image = spaces.Box(np.broadcast_to(low, (h, w, 10)), np.broadcast_to(high, (h, w, 10)), dtype=np.float32)
         # Where the gripper holds the object, in the image ((-1, -1) before the
         # grasp): the learned policy's direction networks read the image there.
         gripper = spaces.Box(np.array([-1, -1]), np.array([h - 1, w - 1]), shape=(2,), dtype=np.int64)
