@@ -96,6 +96,32 @@ def test_the_prev90_filter_never_turns_back_on_the_last_move(tmp_path):
     assert "direction_filter" not in json.loads((tmp_path / "plain" / "results.json").read_text())["summary"]
 
 
+def test_the_sampler_ablations_draw_as_named_and_eval_records_them(tmp_path):
+    def candidates(*flags):
+        args = ("--json", "explore", "--category", "Door", "--policy", "umpnet", "--steps", "1")
+        ep = json.loads(run(*args, *flags).stdout)
+        return np.array(ep["steps"][0]["candidates"]["directions"])
+
+    def closest_pair_degrees(d):
+        cos = d @ d.T - 2 * np.eye(len(d))
+        return np.degrees(np.arccos(np.clip(cos.max(), -1, 1)))
+
+    # The paper's CEM: 64 + 64, the second round clustered around the best of the first.
+    cem = candidates()
+    assert len(cem) == 128 and closest_pair_degrees(cem) < 10
+    # Uniform: one round of the same 128 evaluations, evenly spread.
+    uniform = candidates("--sampler", "uniform")
+    assert len(uniform) == 128 and closest_pair_degrees(uniform) > 10
+    assert len(candidates("--cem-samples", "8")) == 16
+    p = run("explore", "--category", "Door", "--policy", "umpnet", "--cem-samples", "0", check=False)
+    assert p.returncode == 2 and "--cem-samples" in p.stderr, p.stderr
+    ev = ["eval", "--categories", "Door", "--episodes-per-category", "1", "--policies", "umpnet"]
+    run(*ev, "--sampler", "uniform", "--cem-samples", "32", "--out", str(tmp_path / "u"))
+    assert json.loads((tmp_path / "u" / "results.json").read_text())["summary"]["sampler"] == "uniform 32"
+    run(*ev, "--out", str(tmp_path / "plain"))
+    assert "sampler" not in json.loads((tmp_path / "plain" / "results.json").read_text())["summary"]
+
+
 def test_paper_rows_set_each_category_beside_the_papers_figure(tmp_path):
     ev = ["eval", "--categories", "Door,Laptop", "--episodes-per-category", "2"]
     run(*ev, "--policies", "umpnet,random", "--out", str(tmp_path / "plain"))

@@ -39,6 +39,8 @@ pub struct EpisodeArgs {
     /// 90 degrees of the previous action, the paper's +HP; exploration only).
     #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
     pub direction_filter: Option<DirectionFilter>,
+    #[command(flatten)]
+    pub sampler: crate::policies::SamplerArgs,
     /// Model package for --policy umpnet (default: models/umpnet-small).
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -67,6 +69,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         1,
         task,
         a.direction_filter,
+        a.sampler.sampler(),
     )?;
     let mut policy: Box<dyn Policy> = match resolved.factories.first() {
         Some((_, make)) => make()?,

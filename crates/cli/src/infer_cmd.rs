@@ -50,6 +50,8 @@ pub struct InferArgs {
     /// normal90 or prev90 (exploration only).
     #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::DirectionFilter>(crate::DIRECTION_FILTERS))]
     pub direction_filter: Option<umpnet_policy::policy::DirectionFilter>,
+    #[command(flatten)]
+    pub sampler: crate::policies::SamplerArgs,
     /// Pixel (row,col) the gripper holds; without it the position action is chosen.
     #[arg(long, value_delimiter = ',')]
     pub grasp: Vec<usize>,
@@ -427,6 +429,9 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     let mut policy = UmpnetPolicy::new(std::sync::Arc::new(pkg));
     if let Some(f) = a.direction_filter {
         policy = policy.with_direction_filter(f);
+    }
+    if let Some(s) = a.sampler.sampler() {
+        policy = policy.with_sampler(s);
     }
     let previous = match a.previous.as_slice() {
         [] => None,

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use umpnet_eval::bench::PolicyFactory;
 use umpnet_eval::learned::LearnedPolicy;
+use umpnet_policy::cem::Sampler;
 use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::scene::Task;
 
@@ -57,6 +58,35 @@ pub struct Resolved {
     pub packages: Vec<(String, PathBuf)>,
 }
 
+/// The sampler ablations of the paper's appendix, for learned policies.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct SamplerArgs {
+    /// How a learned policy draws candidate directions: cem (the paper: two
+    /// rounds, the second resampled around the best of the first) or uniform
+    /// (one round of twice --cem-samples, the same number of evaluations)
+    #[arg(long, value_parser = ["cem", "uniform"])]
+    pub sampler: Option<String>,
+    /// Candidate directions per CEM round (the paper: 64)
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=umpnet_policy::cem::MAX_CANDIDATES as i64))]
+    pub cem_samples: Option<u32>,
+}
+
+impl SamplerArgs {
+    /// The sampler asked for, or None for the package's default (CEM, 64).
+    pub fn sampler(&self) -> Option<Sampler> {
+        if self.sampler.is_none() && self.cem_samples.is_none() {
+            return None;
+        }
+        let n = self
+            .cem_samples
+            .map_or(umpnet_policy::cem::CANDIDATES, |n| n as usize);
+        Some(match self.sampler.as_deref() {
+            Some("uniform") => Sampler::Uniform { n },
+            _ => Sampler::Cem { n },
+        })
+    }
+}
+
 /// Packages are checked against `task`: an Inverse package has no exploration
 /// behaviour. `filter` replaces every learned package's direction filter.
 pub fn resolve(
@@ -65,6 +95,7 @@ pub fn resolve(
     sessions: usize,
     task: Task,
     filter: Option<DirectionFilter>,
+    sampler: Option<Sampler>,
 ) -> Result<Resolved> {
     if filter == Some(DirectionFilter::Prev90) && task == Task::Goal {
         return Err(usage(
@@ -141,6 +172,9 @@ pub fn resolve(
                     let mut p = LearnedPolicy::new(&n, pkg.clone());
                     if let Some(f) = filter {
                         p = p.with_direction_filter(f);
+                    }
+                    if let Some(s) = sampler {
+                        p = p.with_sampler(s);
                     }
                     Ok(Box::new(p) as Box<dyn umpnet_eval::Policy>)
                 });

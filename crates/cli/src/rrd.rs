@@ -311,6 +311,7 @@ mod tests {
             1,
             Task::Goal,
             None,
+            None,
         )
         .expect("the shipped model (and ONNX Runtime) must load");
         let (_, make) = &resolved.factories[0];

@@ -75,6 +75,12 @@ impl LearnedPolicy {
         self
     }
 
+    /// The policy drawing candidates with another sampler than the paper's CEM.
+    pub fn with_sampler(mut self, sampler: umpnet_policy::cem::Sampler) -> Self {
+        self.policy = self.policy.with_sampler(sampler);
+        self
+    }
+
     /// Loads a package with `sessions` concurrent session sets (one per worker thread).
     pub fn load(dir: &Path, sessions: usize) -> Result<Arc<ModelPackage>> {
         Ok(Arc::new(ModelPackage::load(dir, sessions, 1, None)?))

@@ -10,6 +10,41 @@ use rand::Rng;
 use rand_distr::StandardNormal;
 
 pub const CANDIDATES: usize = 64;
+/// Most candidates per round a caller may ask for (`--cem-samples`).
+pub const MAX_CANDIDATES: usize = 1024;
+
+/// How candidate directions are drawn and scored for one decision.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sampler {
+    /// The paper's cross-entropy method: `n` evenly spread directions, then
+    /// `n` resampled around the best of them; the best of all is chosen.
+    Cem { n: usize },
+    /// The paper's ablation: one round of `2n` evenly spread directions (the
+    /// same number of network evaluations as CEM with `n`).
+    Uniform { n: usize },
+}
+
+impl Default for Sampler {
+    fn default() -> Self {
+        Sampler::Cem { n: CANDIDATES }
+    }
+}
+
+impl Sampler {
+    /// Candidates per round (CEM) or half the single round (uniform).
+    pub fn samples(self) -> usize {
+        match self {
+            Sampler::Cem { n } | Sampler::Uniform { n } => n,
+        }
+    }
+    /// `cem` or `uniform`, as on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Sampler::Cem { .. } => "cem",
+            Sampler::Uniform { .. } => "uniform",
+        }
+    }
+}
 /// Temperature of the resampling weights (paper: exp(20 x score)).
 pub const RESAMPLE_SHARPNESS: f32 = 20.0;
 /// Standard deviation of the noise added to resampled directions.
@@ -82,13 +117,11 @@ pub fn objective(s: &Score, mode: Mode) -> f32 {
     }
 }
 
-/// The first round's candidates for one decision.
-pub fn first_round(rng: &mut impl Rng, banned: &[Vector3<f32>]) -> Vec<Vector3<f32>> {
+/// The first round's `n` candidates for one decision: an evenly spread
+/// sphere of directions, randomly turned.
+pub fn first_round(rng: &mut impl Rng, banned: &[Vector3<f32>], n: usize) -> Vec<Vector3<f32>> {
     let rot = random_rotation(rng);
-    let all: Vec<Vector3<f32>> = fibonacci_sphere(CANDIDATES)
-        .into_iter()
-        .map(|d| rot * d)
-        .collect();
+    let all: Vec<Vector3<f32>> = fibonacci_sphere(n).into_iter().map(|d| rot * d).collect();
     let kept: Vec<Vector3<f32>> = all
         .iter()
         .copied()
@@ -110,13 +143,14 @@ pub fn roulette(weights: &[f32], mut u: f32) -> usize {
     k
 }
 
-/// The second round: resampled around the good ones of the first.
+/// The second round: `n` candidates resampled around the good ones of the first.
 pub fn second_round(
     rng: &mut impl Rng,
     first: &[Vector3<f32>],
     scores: &[Score],
     mode: Mode,
     banned: &[Vector3<f32>],
+    n: usize,
 ) -> Vec<Vector3<f32>> {
     let obj: Vec<f32> = scores.iter().map(|s| objective(s, mode)).collect();
     let top = obj.iter().copied().fold(f32::NEG_INFINITY, f32::max);
@@ -125,9 +159,9 @@ pub fn second_round(
         .map(|o| (RESAMPLE_SHARPNESS * (o - top)).exp())
         .collect();
     let total: f32 = weights.iter().sum();
-    let mut out = Vec::with_capacity(CANDIDATES);
+    let mut out = Vec::with_capacity(n);
     let mut tries = 0;
-    while out.len() < CANDIDATES && tries < CANDIDATES * 20 {
+    while out.len() < n && tries < n * 20 {
         tries += 1;
         let k = roulette(
             &weights,
@@ -174,9 +208,9 @@ pub fn cem(
     banned: &[Vector3<f32>],
     score: &mut dyn FnMut(&[Vector3<f32>]) -> Vec<Score>,
 ) -> CemResult {
-    let first = first_round(rng, banned);
+    let first = first_round(rng, banned, CANDIDATES);
     let s1 = score(&first);
-    let second = second_round(rng, &first, &s1, mode, banned);
+    let second = second_round(rng, &first, &s1, mode, banned, CANDIDATES);
     let s2 = score(&second);
     let candidates: Vec<Vector3<f32>> = first.into_iter().chain(second).collect();
     let scores: Vec<Score> = s1.into_iter().chain(s2).collect();
@@ -354,7 +388,7 @@ mod tests {
         let mut near = 0;
         let mut all = 0;
         for _ in 0..40 {
-            let drawn = second_round(&mut rng, &first, &scores, Mode::Explore, &[]);
+            let drawn = second_round(&mut rng, &first, &scores, Mode::Explore, &[], CANDIDATES);
             assert_eq!(
                 drawn.len(),
                 CANDIDATES,
@@ -397,11 +431,21 @@ mod tests {
         let tilt = BAN_COS.acos();
         let half = [Vector3::new(tilt.sin(), 0.0, tilt.cos())];
         for _ in 0..10 {
-            let drawn = second_round(&mut rng, &first, &scores, Mode::Explore, &half);
+            let drawn = second_round(&mut rng, &first, &scores, Mode::Explore, &half, CANDIDATES);
             assert_eq!(drawn.len(), CANDIDATES);
         }
         // Everything banned: the round gives up with no candidate instead of spinning.
         let everywhere = fibonacci_sphere(400);
-        assert!(second_round(&mut rng, &first, &scores, Mode::Explore, &everywhere).is_empty());
+        assert!(
+            second_round(
+                &mut rng,
+                &first,
+                &scores,
+                Mode::Explore,
+                &everywhere,
+                CANDIDATES
+            )
+            .is_empty()
+        );
     }
 }

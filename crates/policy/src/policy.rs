@@ -4,7 +4,7 @@
     clippy::indexing_slicing,
     reason = "arrays are indexed within shapes checked against the package at the public entry points"
 )]
-use crate::cem::{CemResult, Mode, Score, first_round, second_round, select};
+use crate::cem::{CemResult, Mode, Sampler, Score, first_round, second_round, select};
 use crate::error::{PolicyError, Result};
 use crate::observation::CHANNELS;
 use crate::package::{Branches, ModelPackage};
@@ -46,6 +46,8 @@ pub struct UmpnetPolicy {
     pub package: Arc<ModelPackage>,
     /// The package's `direction_filter`, unless overridden.
     pub direction_filter: DirectionFilter,
+    /// How candidates are drawn: the paper's CEM unless overridden (ablations).
+    pub sampler: Sampler,
 }
 
 impl UmpnetPolicy {
@@ -55,10 +57,18 @@ impl UmpnetPolicy {
         Self {
             package,
             direction_filter,
+            sampler: Sampler::default(),
         }
     }
 
     /// The same package under another direction filter.
+    /// Draws candidates with `sampler` instead of the paper's CEM with 64 per
+    /// round (the sampler ablations of the paper's appendix).
+    pub fn with_sampler(mut self, sampler: Sampler) -> Self {
+        self.sampler = sampler;
+        self
+    }
+
     pub fn with_direction_filter(mut self, filter: DirectionFilter) -> Self {
         self.direction_filter = filter;
         self
@@ -186,18 +196,31 @@ impl UmpnetPolicy {
         if self.package.branches == Branches::Inverse {
             return self.inverse(&de, &ae);
         }
+        let (n, uniform) = match self.sampler {
+            Sampler::Cem { n } => (n, false),
+            Sampler::Uniform { n } => (2 * n, true),
+        };
         let first: Vec<Vec<Vector3<f32>>> = inputs
             .iter()
             .zip(rngs.iter_mut())
-            .map(|(inp, rng)| first_round(rng, inp.banned))
+            .map(|(inp, rng)| first_round(rng, inp.banned, n))
             .collect();
         let mut s1 = self.score(&de, &ae, &first)?;
         self.filter(inputs, &first, &mut s1);
+        if uniform {
+            return Ok((0..b)
+                .map(|i| CemResult {
+                    direction: select(&first[i], &s1[i], inputs[i].mode),
+                    candidates: first[i].clone(),
+                    scores: s1[i].clone(),
+                })
+                .collect());
+        }
         let second: Vec<Vec<Vector3<f32>>> = inputs
             .iter()
             .zip(rngs.iter_mut())
             .enumerate()
-            .map(|(i, (inp, rng))| second_round(rng, &first[i], &s1[i], inp.mode, inp.banned))
+            .map(|(i, (inp, rng))| second_round(rng, &first[i], &s1[i], inp.mode, inp.banned, n))
             .collect();
         let mut s2 = self.score(&de, &ae, &second)?;
         self.filter(inputs, &second, &mut s2);

@@ -68,6 +68,8 @@ pub struct EvalArgs {
     /// exploration only).
     #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
     pub direction_filter: Option<DirectionFilter>,
+    #[command(flatten)]
+    pub sampler: crate::policies::SamplerArgs,
     /// Model package for `umpnet` (default: models/umpnet-small).
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -271,6 +273,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         threads,
         a.task,
         a.direction_filter,
+        a.sampler.sampler(),
     )?;
     let mut models = BTreeMap::new();
     for (name, dir) in &resolved.packages {
@@ -328,6 +331,10 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         categories,
         objects,
         direction_filter: a.direction_filter.map(|f| f.name().to_owned()),
+        sampler: a
+            .sampler
+            .sampler()
+            .map(|s| format!("{} {}", s.name(), s.samples())),
     };
     if let Some(dir) = &a.out
         && !a.force

@@ -44,6 +44,10 @@ pub struct RunInfo {
     /// not its package's own.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub direction_filter: Option<String>,
+    /// `--sampler`/`--cem-samples`: how every learned policy drew its
+    /// candidates (`cem 32`, `uniform 64`), when not the paper's CEM with 64.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampler: Option<String>,
 }
 
 /// One object row: its name, its file and the SHA-256 of its folder (shards
