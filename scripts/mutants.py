@@ -28,13 +28,14 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-GYM = "crates/py/python/umpnet/gym.py"
+# The gym's rewards and ends are Rust's (crates/py/python/umpnet/gym.py calls score_step).
+REWARDS = "crates/eval/src/rewards.rs"
 TRAIN = "train_py/umpnet_train/train.py"
 COLLECT = "train_py/umpnet_train/collect.py"
 PYTEST = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:warnings"]
-GYM_TESTS = [*PYTEST, "crates/py/tests/test_bindings.py", "crates/py/tests/test_gym_vector.py", "-k", "gym"]
 TRAINING = [*PYTEST, "train_py/tests/test_runtime_semantics.py", "train_py/tests/test_train.py"]
 CARGO = ["cargo", "test", "--release", "-q"]
+REWARD_TESTS = [*CARGO, "-p", "umpnet-eval", "--lib", "rewards"]
 
 # (name, file, original text, mutated text, test command, in the CI subset,
 #  the tests written to catch it: the mutant counts as caught only if one of
@@ -50,18 +51,18 @@ MUTANTS = [
      "Mode::Explore => best(&|_| true),", [*CARGO, "-p", "umpnet-policy", "--lib"], True, ("selection_follows_the_wanted_arrow_of_time_before_distance",)),
     ("RGB read as BGR", "crates/policy/src/observation.rs",
      "o[3] = rgb[0] as f32", "o[3] = rgb[2] as f32", [*CARGO, "-p", "umpnet-eval", "--test", "observation"], True, ("observation_channels_are_the_frames_world_points_colours_and_depth",)),
-    ("goal reward sign", GYM,
-     "reward = (np.abs(before - goal) - np.abs(after - goal)) / DELTA",
-     "reward = (np.abs(after - goal) - np.abs(before - goal)) / DELTA", GYM_TESTS, True, ("test_gym_rewards_pay_the_oracle_and_not_random[umpnet/Goal-v0]",)),
-    ("exploration pays going back", GYM,
-     "reward = np.maximum(0.0, distance - farthest) / DELTA",
-     "reward = np.maximum(0.0, farthest - distance) / DELTA", GYM_TESTS, False, ("test_gym_rewards_pay_the_oracle_and_not_random[umpnet/Explore-v0]",)),
-    ("goal never succeeds", GYM,
-     "return reward, reached, farthest",
-     "return reward, reached & False, farthest", GYM_TESTS, False, ("test_gym_rewards_pay_the_oracle_and_not_random[umpnet/Goal-v0]",)),
-    ("exploration ends only at the budget", GYM,
-     "return reward, at_limit, np.maximum(farthest, distance)",
-     "return reward, at_limit & False, np.maximum(farthest, distance)", GYM_TESTS, False, ("test_gym_rewards_pay_the_oracle_and_not_random[umpnet/Explore-v0]",)),
+    ("goal reward sign", REWARDS,
+     "reward: ((before - goal).abs() - (after - goal).abs()) / DELTA,",
+     "reward: ((after - goal).abs() - (before - goal).abs()) / DELTA,", REWARD_TESTS, True, ("goal_pays_progress_both_ways_and_ends_at_or_across_the_goal",)),
+    ("exploration pays going back", REWARDS,
+     "reward: (distance - farthest).max(0.0) / DELTA,",
+     "reward: (farthest - distance).max(0.0) / DELTA,", REWARD_TESTS, False, ("exploration_pays_new_distance_once_and_ends_at_a_limit",)),
+    ("goal never succeeds", REWARDS,
+     "success: protocol::reached_goal(before, after, goal, threshold),",
+     "success: protocol::reached_goal(before, after, goal, threshold) && false,", REWARD_TESTS, False, ("goal_pays_progress_both_ways_and_ends_at_or_across_the_goal",)),
+    ("exploration ends only at the budget", REWARDS,
+     "success: protocol::reached_limit(after, start, lower, upper, threshold),",
+     "success: protocol::reached_limit(after, start, lower, upper, threshold) && false,", REWARD_TESTS, False, ("exploration_pays_new_distance_once_and_ends_at_a_limit",)),
     ("AoT class index reversed in the loss", TRAIN,
      "aot_t = to_long(aot + 1)",
      "aot_t = to_long(1 - aot)", TRAINING, False, ("test_training_labels_use_the_class_order_the_runtime_reads",)),
