@@ -10,7 +10,7 @@ Case fields (see any file for examples):
 - `setup`: steps run here first, in a fresh folder ($TMP): `render`, `write`,
   `repeat` (a head and a line repeated), `fifo`, `symlink`, `copy`, `json`
   (set dotted keys), `poison` (a copy of the shipped package whose output is
-  multiplied by a value), `exec` (Python with TMP, REPO, np).
+  multiplied by a value, conftest.py's `poisoned_package`), `exec` (Python with TMP, REPO, np).
 - `cli` with `exit` and `stderr`, and optionally `stdout` (a file to write it
   to, e.g. /dev/full), `interrupt_after` (seconds before SIGINT), `fsize`
   (the largest file it may write, as on a full disk) and `leaves_no` (globs
@@ -55,22 +55,6 @@ def subst(value, tmp: Path):
     return value
 
 
-def poisoned(dest: Path, file: str, output: str, value: float):
-    """A copy of the shipped package whose `file` gives `output` times `value`."""
-    import onnx
-    from onnx import helper
-
-    shutil.copytree(ROOT / "models" / "umpnet-small", dest)
-    model = onnx.load(str(dest / file))
-    graph = model.graph
-    inner = f"{output}_clean"
-    for node in graph.node:
-        node.output[:] = [inner if o == output else o for o in node.output]
-    graph.node.append(helper.make_node("Constant", [], ["poison"], value_float=value))
-    graph.node.append(helper.make_node("Mul", [inner, "poison"], [output]))
-    onnx.save(model, str(dest / file))
-
-
 def set_dotted(path: Path, changes: dict):
     data = json.loads(path.read_text())
     for key, value in changes.items():
@@ -82,7 +66,7 @@ def set_dotted(path: Path, changes: dict):
     path.write_text(json.dumps(data))
 
 
-def setup(steps, tmp: Path):
+def setup(steps, tmp: Path, poisoned_package):
     for step in steps:
         kind, target = next(iter(step.items()))
         path = tmp / subst(target, tmp)
@@ -104,7 +88,8 @@ def setup(steps, tmp: Path):
         elif kind == "json":
             set_dotted(path, step["set"])
         elif kind == "poison":
-            poisoned(path, step["file"], step["output"], float(step["value"]))
+            shipped = ROOT / "models" / "umpnet-small"
+            poisoned_package(shipped, path, step["file"], step["output"], float(step["value"]))
         elif kind == "exec":
             code = compile(subst(step["exec"], tmp), "<setup>", "exec")
             exec(code, {"TMP": tmp, "REPO": ROOT, "np": np})  # noqa: S102 (the corpus's own setup code)
@@ -156,8 +141,8 @@ def test_every_kind_of_the_issue_has_a_corpus_file():
 
 
 @pytest.mark.parametrize("kind,case", list(cases()))
-def test_bad_input_gets_its_error_within_memory_and_time(kind, case, tmp_path):
-    setup(case.get("setup", []), tmp_path)
+def test_bad_input_gets_its_error_within_memory_and_time(kind, case, tmp_path, poisoned_package):
+    setup(case.get("setup", []), tmp_path, poisoned_package)
     code, err = run_case(case, tmp_path)
     assert "panicked" not in err and "PanicException" not in err, err[-2000:]
     if "cli" in case:

@@ -792,26 +792,9 @@ def test_infer_refuses_cameras_frames_and_depths_that_do_not_fit_by_name(tmp_pat
     assert p.returncode == 2 and "empty.npy: no pixel has a depth" in p.stderr, p.stderr
 
 
-def _poisoned(fixture: str, dest: Path, file: str, output: str, value: float) -> Path:
-    """A copy of the fixture package whose `file` gives `output` times `value`."""
-    import shutil
-
-    import onnx
-    from onnx import helper
-
-    shutil.copytree(fixture, dest)
-    model = onnx.load(str(dest / file))
-    graph = model.graph
-    inner = f"{output}_clean"
-    for node in graph.node:
-        node.output[:] = [inner if o == output else o for o in node.output]
-    graph.node.append(helper.make_node("Constant", [], ["poison"], value_float=value))
-    graph.node.append(helper.make_node("Mul", [inner, "poison"], [output]))
-    onnx.save(model, str(dest / file))
-    return dest
-
-
-def test_network_outputs_that_are_not_numbers_or_out_of_range_are_errors_naming_the_network(tmp_path, fixture_package):
+def test_network_outputs_that_are_not_numbers_or_out_of_range_are_errors_naming_the_network(
+    tmp_path, fixture_package, poisoned_package
+):
     fixture = fixture_package
     cases = [
         ("position.onnx", "affordance", float("nan"), "explore"),
@@ -820,7 +803,7 @@ def test_network_outputs_that_are_not_numbers_or_out_of_range_are_errors_naming_
         ("direction_decoder.onnx", "distance", -100.0, "goal"),
     ]
     for k, (file, output, value, task) in enumerate(cases):
-        pkg = _poisoned(fixture, tmp_path / f"p{k}", file, output, value)
+        pkg = poisoned_package(fixture, tmp_path / f"p{k}", file, output, value)
         p = run(task, "--category", "Door", "--policy", f"bad={pkg}", check=False)
         assert p.returncode == 1 and file in p.stderr and f"output `{output}`" in p.stderr, (file, output, p.stderr)
         assert '"success": true' not in p.stdout
