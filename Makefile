@@ -7,7 +7,7 @@ export XDG_RUNTIME_DIR ?= /tmp
 FIXTURE := $(CURDIR)/target/fixture
 export UMPNET_FIXTURE := $(FIXTURE)
 
-.PHONY: check install install-runtime build py fixture demo eval-baselines eval-objects eval-fields-ablation train-baselines test test-rerun lint lint-rerun test-rust test-python mutants mutants-ci clean
+.PHONY: check install install-runtime install-cli wheel build py fixture demo eval-baselines eval-objects eval-fields-ablation train-baselines test test-rerun lint lint-rerun test-rust test-python mutants mutants-ci clean
 
 install:
 	@bash scripts/install.sh all
@@ -26,6 +26,22 @@ build: install-runtime
 py: install
 	cd crates/py && ../../.venv/bin/maturin develop --release -q
 
+# The abi3 wheel, with the shipped model inside (`umpnet.Policy.default()`),
+# into target/wheels: `pip install target/wheels/umpnet-*.whl`.
+wheel: install
+	cd crates/py && ../../.venv/bin/maturin build --release -q -o ../../target/wheels
+
+# `umpnet` on PATH: the binary in $(PREFIX)/bin, the shipped model in
+# $(PREFIX)/share/umpnet and ONNX Runtime in $(PREFIX)/lib/umpnet, where the
+# binary looks for them.
+PREFIX ?= $(HOME)/.local
+install-cli: build
+	install -D -m 755 $(UMPNET) $(PREFIX)/bin/umpnet
+	mkdir -p $(PREFIX)/share/umpnet/models $(PREFIX)/lib/umpnet
+	cp -r models/umpnet-small $(PREFIX)/share/umpnet/models/
+	cp $$($(PY) -c "import onnxruntime, pathlib; print(sorted((pathlib.Path(onnxruntime.__file__).parent / 'capi').glob('libonnxruntime.so.1.*'))[-1])") $(PREFIX)/lib/umpnet/
+	@echo "installed $(PREFIX)/bin/umpnet$$(case :$$PATH: in *:$(PREFIX)/bin:*) ;; *) echo "; add $(PREFIX)/bin to PATH";; esac)"
+
 # A small untrained model package with Python onnxruntime's outputs: the runtime's contract test.
 fixture: install
 	cd train_py && ../.venv/bin/python -m umpnet_train.fixture $(FIXTURE)
@@ -41,6 +57,7 @@ demo: build
 	$(UMPNET) eval --task goal --episodes-per-category 10 --policies umpnet,oracle,random --out out/eval-goal --force
 	$(UMPNET) bench --frames 20 --actions 100
 	@echo "pictures, tables and plots in out/"
+	@echo "the binary is $(UMPNET); \`make install-cli\` puts \`umpnet\` on PATH (in $(PREFIX)/bin)"
 
 # The baselines comparison: the shipped model, umpnet and the paper's baselines
 # trained with one budget (models/baselines), random and oracle on the same
@@ -124,6 +141,8 @@ test-python: build py fixture
 	# umpnet's wgpu and PyBullet's EGL renderer in one process (its own: EGL state is per process).
 	$(PYTEST) tests/test_egl_coexistence.py
 	$(PYTEST) crates/py/tests
+	# The wheel, installed in a fresh venv outside the repository: an Env episode, Policy.default(), gym.
+	bash scripts/test_wheel.sh
 	UMPNET_BIN=$(UMPNET) PYTHONPATH=train_py:tests/plugins PYTEST_ADDOPTS="-p skipguard" $(PY) -m pytest -q train_py/tests
 
 # cargo-mutants groups whose committed record (docs/mutants/) must be of the

@@ -42,6 +42,23 @@ fn venv_library(dir: &Path) -> Option<PathBuf> {
     None
 }
 
+/// `lib/umpnet/libonnxruntime.so.1.*` under `dir` or any of its ancestors: where
+/// `make install-cli` puts the library beside an installed binary.
+fn prefix_library(dir: &Path) -> Option<PathBuf> {
+    dir.ancestors().find_map(|d| {
+        let lib = d.join("lib").join("umpnet");
+        std::fs::read_dir(&lib)
+            .ok()?
+            .flatten()
+            .map(|e| e.path())
+            .find(|p| {
+                p.file_name()
+                    .and_then(|n| n.to_str())
+                    .is_some_and(|n| n.starts_with("libonnxruntime.so.1."))
+            })
+    })
+}
+
 fn python_library() -> Option<PathBuf> {
     let out = std::process::Command::new("python3")
         .args([
@@ -58,7 +75,8 @@ fn python_library() -> Option<PathBuf> {
 
 /// Where the library would be loaded from, in order: `explicit`, `ORT_DYLIB_PATH`,
 /// the project's `.venv` (from the executable's and the working directory's
-/// ancestors), the `onnxruntime` of `python3` on PATH.
+/// ancestors), an install prefix's `lib/umpnet` above the executable, the
+/// `onnxruntime` of `python3` on PATH.
 pub fn find_library(explicit: Option<&Path>) -> Result<PathBuf> {
     if let Some(p) = explicit {
         return if p.is_file() {
@@ -89,11 +107,13 @@ pub fn find_library(explicit: Option<&Path>) -> Result<PathBuf> {
         .iter()
         .chain(cwd.iter())
         .find_map(|d| venv_library(d))
+        .or_else(|| exe_dir.as_deref().and_then(prefix_library))
         .or_else(python_library)
         .ok_or_else(|| {
             PolicyError::Runtime(format!(
                 "cannot find {ORT_LIBRARY} (looked at ORT_DYLIB_PATH, in a .venv above the binary \
-                 and the working directory, and in python3's onnxruntime): set ORT_DYLIB_PATH to \
+                 and the working directory, in lib/umpnet above the binary, and in python3's \
+                 onnxruntime): set ORT_DYLIB_PATH to \
                  the library, e.g. from `pip install onnxruntime==1.31.1`"
             ))
         })
@@ -127,4 +147,27 @@ pub fn ensure_loaded(explicit: Option<&Path>) -> Result<PathBuf> {
         })
         .clone()
         .map_err(PolicyError::Runtime)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_install_prefix_library_is_found_from_the_binary_folder_only_by_its_name() {
+        let prefix = tempfile::tempdir().unwrap();
+        let bin = prefix.path().join("bin");
+        let lib = prefix.path().join("lib").join("umpnet");
+        std::fs::create_dir_all(&bin).unwrap();
+        std::fs::create_dir_all(&lib).unwrap();
+        assert_eq!(prefix_library(&bin), None);
+        std::fs::write(lib.join("libonnxruntime.so"), b"").unwrap();
+        std::fs::write(lib.join("README"), b"").unwrap();
+        assert_eq!(prefix_library(&bin), None, "needs a versioned 1.x library");
+        std::fs::write(lib.join("libonnxruntime.so.1.32.0"), b"").unwrap();
+        assert_eq!(
+            prefix_library(&bin),
+            Some(lib.join("libonnxruntime.so.1.32.0"))
+        );
+    }
 }

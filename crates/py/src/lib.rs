@@ -410,15 +410,21 @@ struct Policy {
 #[pymethods]
 impl Policy {
     #[new]
-    #[pyo3(signature = (model_dir, seed=0, threads=1))]
-    fn new(model_dir: PathBuf, seed: u64, threads: usize) -> PyResult<Self> {
+    #[pyo3(signature = (model_dir, seed=0, threads=1, onnxruntime=None))]
+    fn new(
+        model_dir: PathBuf,
+        seed: u64,
+        threads: usize,
+        onnxruntime: Option<PathBuf>,
+    ) -> PyResult<Self> {
         use rand::SeedableRng;
         if !(1..=MAX_THREADS).contains(&threads) {
             return Err(PyValueError::new_err(format!(
                 "threads = {threads}: expected 1 to {MAX_THREADS}"
             )));
         }
-        let pkg = ModelPackage::load(&model_dir, 1, threads, None).map_err(policy_err)?;
+        let pkg = ModelPackage::load(&model_dir, 1, threads, onnxruntime.as_deref())
+            .map_err(policy_err)?;
         Ok(Self {
             inner: UmpnetPolicy::new(Arc::new(pkg)),
             rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed),

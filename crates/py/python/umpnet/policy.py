@@ -2,9 +2,32 @@
 
 from __future__ import annotations
 
+import importlib.util
+import os
+from pathlib import Path
+
 import numpy as np
 
 from ._umpnet import Policy as _Policy
+
+# The shipped model package: inside the wheel, or a link to models/umpnet-small
+# in a source checkout.
+SHIPPED_MODEL = Path(__file__).with_name("model")
+
+
+def onnxruntime_library() -> Path | None:
+    """The ONNX Runtime shared library of this interpreter's ``onnxruntime``
+    package (found without importing it), or None. Looked up here because the
+    runtime's own search asks ``python3`` on PATH, which need not be the
+    interpreter this module runs in (a venv used without activating it)."""
+    spec = importlib.util.find_spec("onnxruntime")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    for root in spec.submodule_search_locations:
+        libraries = sorted((Path(root) / "capi").glob("libonnxruntime.so.1.*"))
+        if libraries:
+            return libraries[-1]
+    return None
 
 
 class Policy(_Policy):
@@ -19,7 +42,28 @@ class Policy(_Policy):
         env = gym.make("umpnet/Goal-v0", resolution=policy.resolution)
         obs, _ = env.reset(seed=0)
         obs, reward, terminated, truncated, info = env.step(policy.act(obs, "goal"))
+
+    ONNX Runtime is the ``onnxruntime`` package's library unless
+    ``onnxruntime`` (a path to ``libonnxruntime.so.1.*``) or the
+    ``ORT_DYLIB_PATH`` environment variable names another. The library is
+    loaded once per process: the first Policy's choice holds.
     """
+
+    def __new__(cls, model_dir, seed: int = 0, threads: int = 1, onnxruntime=None):
+        if onnxruntime is None and "ORT_DYLIB_PATH" not in os.environ:
+            onnxruntime = onnxruntime_library()
+        return super().__new__(
+            cls, os.fspath(model_dir), seed, threads, None if onnxruntime is None else os.fspath(onnxruntime)
+        )
+
+    @classmethod
+    def default(cls, seed: int = 0, threads: int = 1) -> Policy:
+        """The shipped model package (``umpnet-small``), as installed with the wheel."""
+        if not (SHIPPED_MODEL / "model.json").is_file():
+            raise FileNotFoundError(
+                f"the shipped model is not at {SHIPPED_MODEL}: this install of umpnet was built without it"
+            )
+        return cls(SHIPPED_MODEL, seed=seed, threads=threads)
 
     def act(self, obs: dict, task: str = "exploration") -> dict:
         """The gym action for ``obs``: the grasp pixel in phase 0, then a
