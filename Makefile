@@ -73,7 +73,7 @@ eval-baselines: build
 
 # Objects made elsewhere (docs/objects.md): every articulated object of the
 # installed metaworld package, imported through MuJoCo, scored like the
-# categories for the shipped model, random and the oracle, then the README's table.
+# categories for the shipped model, random and the oracle, then docs/objects.md's table.
 OBJECT_EPISODES ?= 50
 eval-objects: build py
 	$(PY) -m umpnet.objects metaworld --out data/external --force

@@ -1,4 +1,4 @@
-"""The README's table of objects made elsewhere, from `make eval-objects`.
+"""docs/objects.md's table of objects made elsewhere, from `make eval-objects`.
 
     .venv/bin/python scripts/objects_table.py [--dir out] [--per-object]
 

@@ -591,9 +591,9 @@ def test_each_policy_sees_its_own_resolution_so_listing_others_changes_nothing(t
         assert episodes("a", policy) == episodes("b", policy) and len(episodes("a", policy)) == 6, policy
 
 
-def test_readme_infer_example_runs_as_written(tmp_path):
-    """The README's render -> infer commands, as written, with the shipped model."""
-    readme = (ROOT / "README.md").read_text()
+def test_documented_infer_example_runs_as_written(tmp_path):
+    """docs/cli.md's render -> infer commands, as written, with the shipped model."""
+    readme = (ROOT / "docs" / "cli.md").read_text()
     block = readme.split("umpnet render --category Microwave", 1)[1].split("```", 1)[0]
     lines = ("umpnet render --category Microwave" + block).replace("\\\n", " ").strip().splitlines()
     assert len(lines) == 2 and lines[1].startswith("umpnet infer"), lines
