@@ -612,30 +612,67 @@ def test_documented_infer_example_runs_as_written(tmp_path):
     assert bad.returncode == 2 and "bad.json" in bad.stderr, bad.stderr
 
 
-def test_pictures_have_captions_a_legend_and_the_goal(tmp_path):
-    """The contact sheet opens with the goal; each tile has a caption band with
-    text drawn from the step's data; a legend of the marks ends the sheet; the
-    depth picture's legend has numbers."""
+def test_pictures_are_display_size_with_titles_captions_a_legend_and_the_goal(tmp_path):
+    """Pictures are drawn at --picture-size (480x640 by default), not the
+    policy's 96x128, which is an inset; every step carries the same title and
+    its own caption; the grasp mark follows the part as it moves; the sheet
+    ends with a legend of the marks; the depth picture's legend has numbers."""
     model = str(ROOT / "models" / "umpnet-small")
     run("goal", "--category", "Door", "--seed", "2", "--policy", "umpnet", "--model", model, "--out", str(tmp_path))
     sheet = np.asarray(Image.open(tmp_path / "episode.png").convert("RGB")).astype(int)
     goal = np.asarray(Image.open(tmp_path / "goal.png").convert("RGB")).astype(int)
-    h, w, _ = goal.shape
-    assert np.array_equal(sheet[:h, :w], goal), "the first tile is not the goal"
 
     def dark(a):
         return int((a.max(axis=-1) < 90).sum())
 
     steps = sorted(tmp_path.glob("step_*.png"))
+    assert len(steps) >= 3, steps
     tiles = [np.asarray(Image.open(p).convert("RGB")).astype(int) for p in steps]
-    band = 3 * 20  # three caption lines below the picture, at most 20 px each
+    assert all(t.shape[1] == 640 and t.shape[0] > 480 for t in tiles), [t.shape for t in tiles]
+    assert goal.shape[1] == 640
+    # The title: a dark band with light text, the same on every step.
+    title_band = 20
+    for t in tiles + [sheet]:
+        top = t[:title_band]
+        assert ((top == [40, 44, 52]).all(axis=-1)).mean() > 0.5 and (top.min(axis=-1) > 200).sum() > 30
+    assert len({t[:title_band].tobytes() for t in tiles}) == 1, "steps of one episode have different titles"
+    band = 3 * 30  # three caption lines below the picture, at most 30 px each at 640 wide
     bands = [t[-band:] for t in tiles]
     assert all(dark(b) > 80 for b in bands), [dark(b) for b in bands]
     assert len({b.tobytes() for b in bands}) == len(bands), "captions do not change with the steps"
     assert dark(goal[-band:]) > 30
-    legend = sheet[-28:]
+    # The policy's view as an inset: a white frame in the top right corner.
+    picture = tiles[1][title_band + 20 : title_band + 200, 400:]
+    assert ((picture == [255, 255, 255]).all(axis=-1)).sum() > 300
+    # The grasp mark moves with the door between the first and the last step.
+
+    def grasp_mark(t):
+        rows, cols = np.nonzero((t[:, :, 0] == 255) & (t[:, :, 1] == 40) & (t[:, :, 2] == 40))
+        assert len(rows) > 20, "no grasp mark"
+        return np.array([rows.mean(), cols.mean()])
+
+    assert np.linalg.norm(grasp_mark(tiles[0]) - grasp_mark(tiles[-1])) > 5  # a mark left at the pixel: 0
+    legend = sheet[-60:]
     assert ((legend == [255, 220, 0]).all(axis=-1)).any() and ((legend == [255, 40, 40]).all(axis=-1)).any()
     assert dark(legend) > 100
+    # Another size on request.
+    run(
+        "goal",
+        "--category",
+        "Door",
+        "--seed",
+        "2",
+        "--policy",
+        "random",
+        "--picture-size",
+        "240x320",
+        "--steps",
+        "2",
+        "--out",
+        str(tmp_path / "small"),
+    )
+    small = Image.open(tmp_path / "small" / "step_00.png")
+    assert small.size[0] == 320, small.size
     run("render", "--category", "Door", "--seed", "1", "--resolution", "120x160", "--out", str(tmp_path / "r"))
     depth = np.asarray(Image.open(tmp_path / "r" / "depth.png").convert("RGB")).astype(int)
     numbers = depth[:, 160 + 40 :]

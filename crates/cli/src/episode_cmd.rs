@@ -1,13 +1,11 @@
-use crate::{Ctx, images, usage};
+use crate::{Ctx, images, pictures, usage};
 use anyhow::{Context, Result};
-use image::RgbImage;
 use std::path::PathBuf;
 use umpnet_eval::Policy;
-use umpnet_eval::episode::{EpisodeConfig, HookFrame, Step, run_episode};
+use umpnet_eval::episode::{EpisodeConfig, HookFrame, run_episode};
 use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::camera::Camera;
-use umpnet_sim::math::Vec3;
-use umpnet_sim::render::{Frame, RendererKind, create_renderer};
+use umpnet_sim::render::{RendererKind, create_renderer};
 use umpnet_sim::scene::Task;
 
 /// Most direction actions one episode may take: the paper's budgets are 10
@@ -55,6 +53,10 @@ pub struct EpisodeArgs {
     /// Write one PNG per step, a contact sheet and an animated GIF here.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Size of the pictures in --out, HEIGHTxWIDTH, whatever the policy sees
+    /// (its view is drawn as an inset).
+    #[arg(long, default_value = "480x640", value_parser = crate::parse_resolution)]
+    pub picture_size: (u32, u32),
     /// Write a Rerun recording of the episode to this .rrd file (images,
     /// meshes and their poses, gripper, action arrows, joint and predictions
     /// over steps). Needs a build with the `rerun` feature.
@@ -95,10 +97,19 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         None => None,
     };
     let mut record_error: Option<anyhow::Error> = None;
-    let mut pictures: Vec<RgbImage> = Vec::new();
+    let mut display = match &a.out {
+        Some(_) => Some(pictures::Display::new(&scene, a.picture_size, a.renderer)?),
+        None => None,
+    };
+    let mut tiles: Vec<pictures::Tile> = Vec::new();
     let mut hook = |h: &HookFrame<'_>| {
-        if a.out.is_some() {
-            pictures.push(step_picture(h.frame, h.t, h.step, h.pixel));
+        if let Some(d) = display.as_mut()
+            && record_error.is_none()
+        {
+            match d.step(h) {
+                Ok(tile) => tiles.push(tile),
+                Err(e) => record_error = Some(e.context("drawing the episode's pictures")),
+            }
         }
         if let Some(r) = recorder.as_mut()
             && record_error.is_none()
@@ -129,31 +140,30 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
     if let Some(r) = recorder {
         r.finish()?;
     }
-    if let Some(out) = &a.out {
+    let (ended, why) = end_reason(&ep, task);
+    if let (Some(out), Some(d)) = (&a.out, display.as_mut()) {
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-        for (t, p) in pictures.iter().enumerate() {
+        let title = picture_title(&ep, task, a.object.seed, &why);
+        let steps: Vec<_> = tiles
+            .iter()
+            .map(|t| pictures::with_title(&t.at_width(t.img.width()), &title))
+            .collect();
+        for (t, p) in steps.iter().enumerate() {
             images::save(p, &out.join(format!("step_{t:02}.png")))?;
         }
         // The goal task's sheet opens with the goal, so each step can be set beside it.
-        let mut tiles = Vec::with_capacity(pictures.len() + 1);
-        if let Some(goal) = &scene.goal {
-            let mut env = umpnet_sim::env::SimEnv::new(
-                scene.clone(),
-                camera.clone(),
-                create_renderer(a.renderer)?,
-            )?;
-            if let Some(f) = env.render_goal()? {
-                let value = goal.joints.get(goal.joint).copied();
-                let tile = goal_picture(&f, value);
-                images::save(&tile, &out.join("goal.png"))?;
-                tiles.push(tile);
-            }
+        let mut sheet = Vec::with_capacity(tiles.len() + 1);
+        if let Some(goal) = d.goal()? {
+            images::save(&goal.at_width(goal.img.width()), &out.join("goal.png"))?;
+            sheet.push(goal);
         }
-        tiles.extend(pictures.iter().cloned());
-        images::save(&contact_sheet(&tiles), &out.join("episode.png"))?;
-        write_gif(&pictures, &out.join("episode.gif"))?;
+        sheet.extend(tiles);
+        images::save(
+            &pictures::contact_sheet(&sheet, &title),
+            &out.join("episode.png"),
+        )?;
+        pictures::write_gif(&steps, &out.join("episode.gif"))?;
     }
-    let (ended, why) = end_reason(&ep, task);
     if ctx.json {
         let mut value = serde_json::to_value(&ep)?;
         if let Some(map) = value.as_object_mut() {
@@ -231,9 +241,49 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
     Ok(())
 }
 
+/// The pictures' title: what ran on what, and how it ended.
+fn picture_title(ep: &umpnet_eval::episode::Episode, task: Task, seed: u64, why: &str) -> String {
+    use umpnet_sim::scene::ObjectSource;
+    let object = match &ep.scene.object {
+        ObjectSource::Generated {
+            category, index, ..
+        } => format!("{} #{index}", category.name()),
+        ObjectSource::File { path } => path.parent().and_then(|p| p.file_name()).map_or_else(
+            || path.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        ),
+    };
+    let what = match task {
+        Task::Exploration => format!(
+            "exploration, novel-state ratio {:.2}",
+            ep.metrics.novel_state_ratio
+        ),
+        Task::Goal => format!(
+            "goal {}, distance {:.2}",
+            if ep.metrics.success {
+                "reached"
+            } else {
+                "not reached"
+            },
+            ep.metrics.normalized_distance
+        ),
+    };
+    format!(
+        "{object} | policy {} | seed {seed} | {what} | {why}",
+        ep.policy
+    )
+}
+
 /// How an episode ended, as a code (`--json`'s `ended`) and in words.
 fn end_reason(ep: &umpnet_eval::episode::Episode, task: Task) -> (&'static str, String) {
     let n = ep.steps.len();
+    let steps = |k: usize| {
+        if k == 1 {
+            "1 step".to_owned()
+        } else {
+            format!("{k} steps")
+        }
+    };
     if !ep.valid_position {
         (
             "missed",
@@ -242,27 +292,31 @@ fn end_reason(ep: &umpnet_eval::episode::Episode, task: Task) -> (&'static str, 
     } else if ep.stopped_early {
         (
             "policy_stopped",
-            format!("the policy stopped after {n} steps"),
+            format!("the policy stopped after {}", steps(n)),
         )
     } else if ep.ended_by_protocol && task == Task::Goal {
         (
             "goal_reached",
-            format!("the goal was reached in {n} of {} steps", ep.budget),
+            format!("the goal was reached in {n} of {}", steps(ep.budget)),
         )
     } else if ep.ended_by_protocol {
         (
             "joint_limit",
             format!(
-                "the part reached a joint limit after {n} steps (the paper's protocol ends exploration there)"
+                "the part reached a joint limit after {} (the paper's protocol ends exploration there)",
+                steps(n)
             ),
         )
     } else if !ep.steps.iter().any(|s| s.record.labels.moved) {
         (
             "no_effect",
-            format!("all {} steps spent, none of them moved the part", ep.budget),
+            format!(
+                "all {} spent, none of them moved the part",
+                steps(ep.budget)
+            ),
         )
     } else {
-        ("budget", format!("all {} steps spent", ep.budget))
+        ("budget", format!("all {} spent", steps(ep.budget)))
     }
 }
 
@@ -312,162 +366,4 @@ fn print_axis_estimate(ep: &umpnet_eval::episode::Episode) -> Result<()> {
         err.degrees
     );
     Ok(())
-}
-
-/// Candidate arrows drawn per step: the most promising ones, not a blur of all.
-const SHOWN_CANDIDATES: usize = 8;
-const GRASP: [u8; 3] = [255, 40, 40];
-const EXECUTED: [u8; 3] = [255, 220, 0];
-const FORWARD: [u8; 3] = [40, 200, 60];
-const BACKWARD: [u8; 3] = [230, 60, 200];
-const NO_MOVE: [u8; 3] = [160, 160, 160];
-
-fn aot_color(aot: Option<&i8>) -> [u8; 3] {
-    match aot {
-        Some(1) => FORWARD,
-        Some(-1) => BACKWARD,
-        _ => NO_MOVE,
-    }
-}
-
-/// One tile: the frame, the grasp, the executed direction and the top
-/// candidates, with a caption saying what happened and what was predicted.
-fn step_picture(f: &Frame, t: usize, step: Option<&Step>, pixel: (u32, u32)) -> RgbImage {
-    let mut img = images::color_image(f);
-    let scale = f.width as f32 / 320.0;
-    let thick = (2.0 * scale).round().max(1.0) as i32;
-    images::draw_disc(
-        &mut img,
-        (pixel.1 as f32 + 0.5, pixel.0 as f32 + 0.5),
-        4.0 * scale.max(0.5),
-        GRASP,
-    );
-    let mut caption = vec![match step {
-        None => format!("start: grasp at pixel ({}, {})", pixel.0, pixel.1),
-        Some(s) => format!(
-            "step {t}: joint {:.2} -> {:.2}",
-            s.record.labels.joint_before, s.record.labels.joint_after
-        ),
-    }];
-    if let Some(s) = step {
-        // Arrows start where the gripper was when the action began.
-        let from = Vec3::from(s.gripper_in_world);
-        let mut predicted = None;
-        if let Some(c) = &s.candidates {
-            let maxd = c.distance.iter().copied().fold(1e-6f32, f32::max);
-            let mut order: Vec<usize> = (0..c.directions.len()).collect();
-            order.sort_by(|&a, &b| {
-                let d = |k: usize| c.distance.get(k).copied().unwrap_or(0.0);
-                d(b).total_cmp(&d(a))
-            });
-            for &k in order.iter().take(SHOWN_CANDIDATES) {
-                let (Some(d), Some(dist)) = (c.directions.get(k), c.distance.get(k)) else {
-                    continue;
-                };
-                let length = 0.2 * dist.max(0.0) / maxd;
-                images::draw_arrow(
-                    &mut img,
-                    f,
-                    from,
-                    Vec3::from(*d),
-                    length,
-                    aot_color(c.aot.get(k)),
-                    1,
-                );
-            }
-            // The executed direction's own prediction, if it is a candidate.
-            predicted = c
-                .index_of(Vec3::from(s.record.direction))
-                .and_then(|k| Some((*c.distance.get(k)?, *c.aot.get(k)?)));
-        }
-        images::draw_arrow(
-            &mut img,
-            f,
-            from,
-            Vec3::from(s.record.direction),
-            0.25,
-            EXECUTED,
-            thick + 1,
-        );
-        // The network's AoT is relative to its reference image (the goal, in
-        // the goal task); the simulator's labels to the episode's start.
-        caption.push(match predicted {
-            Some((d, aot)) => format!("predicted d {d:.2}, AoT {aot:+} vs reference"),
-            None => "predicted: -".to_owned(),
-        });
-        caption.push(format!(
-            "actual d {:.2}, AoT {:+} vs start",
-            s.record.labels.r_dist, s.record.labels.aot
-        ));
-    } else {
-        caption.extend([String::new(), String::new()]);
-    }
-    crate::text::with_caption(&images::enlarge(&img, 320), &caption)
-}
-
-/// The goal observation as a tile, captioned like the steps.
-fn goal_picture(f: &Frame, goal_value: Option<f32>) -> RgbImage {
-    let img = images::enlarge(&images::color_image(f), 320);
-    let line = goal_value.map_or(String::new(), |v| format!("joint at the goal {v:.2}"));
-    crate::text::with_caption(&img, &["goal".to_owned(), line, String::new()])
-}
-
-/// The tiles in a grid, then a legend of the marks.
-fn contact_sheet(pics: &[RgbImage]) -> RgbImage {
-    let Some(first) = pics.first() else {
-        return RgbImage::new(1, 1);
-    };
-    let cols = (pics.len() as f32).sqrt().ceil() as u32;
-    let rows = (pics.len() as u32).div_ceil(cols);
-    let (w, h) = (first.width(), first.height());
-    let legend_h = 28;
-    let mut sheet = RgbImage::from_pixel(
-        (cols * w).max(640),
-        rows * h + legend_h,
-        image::Rgb([255, 255, 255]),
-    );
-    for (i, p) in pics.iter().enumerate() {
-        image::imageops::overlay(
-            &mut sheet,
-            p,
-            ((i as u32 % cols) * w) as i64,
-            ((i as u32 / cols) * h) as i64,
-        );
-    }
-    let y = (rows * h) as f32 + 14.0;
-    let mut x = 8.0;
-    for (color, label, arrow) in [
-        (GRASP, "grasp", false),
-        (EXECUTED, "executed", true),
-        (FORWARD, "candidate: forward", true),
-        (BACKWARD, "backward", true),
-        (NO_MOVE, "no change", true),
-    ] {
-        if arrow {
-            images::draw_line(&mut sheet, (x, y), (x + 18.0, y), color, 3);
-        } else {
-            images::draw_disc(&mut sheet, (x + 8.0, y), 5.0, color);
-        }
-        x += 24.0;
-        crate::text::draw(&mut sheet, x, y - 8.0, 14.0, label, [30, 30, 30]);
-        x += crate::text::width(label, 14.0) + 16.0;
-    }
-    sheet
-}
-
-fn write_gif(pics: &[RgbImage], path: &std::path::Path) -> Result<()> {
-    let mut bytes = Vec::new();
-    let mut enc = image::codecs::gif::GifEncoder::new_with_speed(&mut bytes, 10);
-    enc.set_repeat(image::codecs::gif::Repeat::Infinite)?;
-    for p in pics {
-        let rgba = image::DynamicImage::ImageRgb8(p.clone()).to_rgba8();
-        enc.encode_frame(image::Frame::from_parts(
-            rgba,
-            0,
-            0,
-            image::Delay::from_numer_denom_ms(600, 1),
-        ))?;
-    }
-    drop(enc);
-    Ok(umpnet_sim::fsio::write_atomic(path, &bytes)?)
 }

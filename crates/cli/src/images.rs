@@ -186,17 +186,3 @@ pub fn draw_arrow(
         draw_line(img, b, tip, color, thick);
     }
 }
-
-/// Nearest-neighbour enlargement so small frames are readable.
-pub fn enlarge(img: &RgbImage, min_width: u32) -> RgbImage {
-    let k = min_width.div_ceil(img.width()).max(1);
-    if k == 1 {
-        return img.clone();
-    }
-    image::imageops::resize(
-        img,
-        img.width() * k,
-        img.height() * k,
-        image::imageops::FilterType::Nearest,
-    )
-}

@@ -25,6 +25,7 @@ mod images;
 mod infer_cmd;
 mod objects_cmd;
 mod outdir;
+mod pictures;
 mod policies;
 mod render_cmd;
 #[cfg(feature = "rerun")]

@@ -80,6 +80,28 @@ pub fn draw(img: &mut RgbImage, x: f32, y: f32, size: f32, text: &str, color: [u
     }
 }
 
+/// `text` broken into lines at most `max_width` pixels wide at `size`.
+pub fn wrap(text: &str, size: f32, max_width: f32) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    let mut line = String::new();
+    for word in text.split_whitespace() {
+        let candidate = if line.is_empty() {
+            word.to_owned()
+        } else {
+            format!("{line} {word}")
+        };
+        if !line.is_empty() && width(&candidate, size) > max_width {
+            lines.push(std::mem::replace(&mut line, word.to_owned()));
+        } else {
+            line = candidate;
+        }
+    }
+    if !line.is_empty() {
+        lines.push(line);
+    }
+    lines
+}
+
 /// `img` with a white band of `lines` below it, each drawn in dark grey.
 pub fn with_caption(img: &RgbImage, lines: &[String]) -> RgbImage {
     let size = (img.width() as f32 / 26.0).clamp(11.0, 20.0);

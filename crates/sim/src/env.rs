@@ -159,6 +159,14 @@ impl SimEnv {
         r.renderer.render(r.camera, &r.part_transforms)
     }
 
+    /// Renders parts posed elsewhere (another environment's
+    /// [`SimEnv::part_transforms`] on the same object) through this
+    /// environment's camera: pictures at a display size while the policy
+    /// sees its own.
+    pub fn render_parts(&mut self, part_transforms: &[Mat4]) -> Result<Frame> {
+        self.renderer.render(&self.camera, part_transforms)
+    }
+
     /// What [`SimEnv::render`] would draw, as a request for
     /// [`crate::render::render_batch`], which renders many environments in
     /// one submission.

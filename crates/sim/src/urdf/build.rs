@@ -124,7 +124,9 @@ fn mesh_path_in(base_dir: &Path, filename: &str) -> Option<PathBuf> {
 }
 
 fn material_color(m: &Option<urdf_rs::Material>, named: &HashMap<String, [f32; 3]>) -> [f32; 3] {
-    const DEFAULT: [f32; 3] = [0.7, 0.7, 0.7];
+    // PyBullet's colour for a visual without a material (its
+    // getVisualShapeData gives rgba 1 1 1 1): white, apart from the grey floor.
+    const DEFAULT: [f32; 3] = [1.0, 1.0, 1.0];
     match m {
         Some(m) => match &m.color {
             Some(c) => [c.rgba.0[0] as f32, c.rgba.0[1] as f32, c.rgba.0[2] as f32],

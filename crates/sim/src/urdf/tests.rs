@@ -68,6 +68,25 @@ fn mesh_colours_come_from_the_mtl_file_as_pybullet_loads_partnet() {
 }
 
 #[test]
+fn a_visual_without_material_is_white_as_in_pybullet_not_the_floors_grey() {
+    let body =
+        r#"<link name="base"><visual><geometry><box size="1 1 1"/></geometry></visual></link>"#;
+    let m = parse_urdf(&wrap(body), Path::new("obj/mobility.urdf")).unwrap();
+    let floor = crate::render::plane_mesh(0).color;
+    for link in &m.links {
+        assert_eq!(link.visuals[0].color, [1.0, 1.0, 1.0]);
+        let apart: f32 = (0..3)
+            .map(|k| (link.visuals[0].color[k] - floor[k]).abs())
+            .sum();
+        assert!(
+            apart > 0.9,
+            "default colour {:?} too close to the floor {floor:?}",
+            link.visuals[0].color
+        );
+    }
+}
+
+#[test]
 fn partnet_limit_without_velocity_and_stray_chars_load() {
     let m = parse_urdf(
         &wrap(&format!(
