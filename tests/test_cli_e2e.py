@@ -844,3 +844,31 @@ def test_network_outputs_that_are_not_numbers_or_out_of_range_are_errors_naming_
         p = run(task, "--category", "Door", "--policy", f"bad={pkg}", check=False)
         assert p.returncode == 1 and file in p.stderr and f"output `{output}`" in p.stderr, (file, output, p.stderr)
         assert '"success": true' not in p.stdout
+
+
+def test_scale_and_pose_place_an_object_file_as_pybullet_load_urdf_would(tmp_path):
+    """--scale and --pose place an --object file (over its
+    object_meta_info.json), are carried into the scene, and are refused by
+    name when wrong or without --object."""
+    cabinet = str(ROOT / "crates" / "sim" / "tests" / "data" / "cabinet.urdf")
+
+    def object_pixels(*placement):
+        out = tmp_path / ("r" + "_".join(placement).replace(",", "-"))
+        run("render", "--object", cabinet, "--renderer", "cpu", "--resolution", "96x128", "--out", str(out), *placement)
+        seg = np.asarray(Image.open(out / "segmentation.png").convert("RGB")).astype(int)
+        background = np.bincount((seg[..., 0] * 65536 + seg[..., 1] * 256 + seg[..., 2]).ravel()).argmax()
+        return int(((seg[..., 0] * 65536 + seg[..., 1] * 256 + seg[..., 2]) != background).sum())
+
+    full, half = object_pixels(), object_pixels("--scale", "0.5")
+    assert 0.1 * full < half < 0.6 * full, (full, half)
+    assert object_pixels("--pose", "0.7071068,0,0,0.7071068") != full
+    ep = json.loads(run("--json", "explore", "--object", cabinet, "--scale", "0.8", "--steps", "1").stdout)
+    assert ep["scene"]["object"]["pose"]["scale"] == pytest.approx(0.8)
+    for bad, says in [
+        (["--object", cabinet, "--scale", "-1"], "(0, 1000]"),
+        (["--object", cabinet, "--pose", "1,2"], "got 2"),
+        (["--object", cabinet, "--pose", "1,1,0,0"], "unit quaternion"),
+        (["--category", "Door", "--scale", "2"], "--object"),
+    ]:
+        p = run("render", "--out", str(tmp_path / "bad"), *bad, check=False)
+        assert p.returncode == 2 and says in p.stderr, (bad, p.stderr)

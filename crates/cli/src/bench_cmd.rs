@@ -47,6 +47,8 @@ fn object_args(
         instance,
         dataset_seed: 0,
         physics,
+        scale: None,
+        pose: None,
     }
 }
 

@@ -248,7 +248,7 @@ fn picture_title(ep: &umpnet_eval::episode::Episode, task: Task, seed: u64, why:
         ObjectSource::Generated {
             category, index, ..
         } => format!("{} #{index}", category.name()),
-        ObjectSource::File { path } => path.parent().and_then(|p| p.file_name()).map_or_else(
+        ObjectSource::File { path, .. } => path.parent().and_then(|p| p.file_name()).map_or_else(
             || path.display().to_string(),
             |n| n.to_string_lossy().into_owned(),
         ),

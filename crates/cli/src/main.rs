@@ -190,9 +190,72 @@ pub struct ObjectArgs {
     /// follows the joint's path).
     #[arg(long, default_value = "reference", value_parser = choice::<PhysicsProfile>(PHYSICS))]
     pub physics: PhysicsProfile,
+    /// With --object: uniform scale of the object file (as PyBullet's
+    /// globalScaling; PartNet-Mobility's is 0.55), instead of its
+    /// object_meta_info.json's.
+    #[arg(long, requires = "object", value_parser = parse_scale, allow_hyphen_values = true)]
+    pub scale: Option<f32>,
+    /// With --object: the file's orientation as a quaternion, and optionally
+    /// its lift off the floor in the file's units: `QX,QY,QZ,QW[,OFFSET_Z]`
+    /// (e.g. `0.7071,0,0,0.7071` stands a Y-up model upright). Applied before
+    /// the scene's random yaw; instead of object_meta_info.json's.
+    #[arg(long, requires = "object", value_parser = parse_pose, allow_hyphen_values = true)]
+    pub pose: Option<([f32; 4], Option<f32>)>,
+}
+
+fn parse_scale(s: &str) -> std::result::Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= 1000.0 => Ok(v),
+        _ => Err(format!("`{s}`: expected a scale in (0, 1000], e.g. 0.55")),
+    }
+}
+
+fn parse_pose(s: &str) -> std::result::Result<([f32; 4], Option<f32>), String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| format!("`{s}`: expected QX,QY,QZ,QW or QX,QY,QZ,QW,OFFSET_Z (numbers)"))?;
+    let (q, offset) = match v.as_slice() {
+        [x, y, z, w] => ([*x, *y, *z, *w], None),
+        [x, y, z, w, o] => ([*x, *y, *z, *w], Some(*o)),
+        _ => {
+            return Err(format!(
+                "`{s}`: expected 4 numbers (QX,QY,QZ,QW) or 5 (and OFFSET_Z), got {}",
+                v.len()
+            ));
+        }
+    };
+    let pose = umpnet_sim::model::ObjectPose {
+        orientation: q,
+        offset_z: offset.unwrap_or(0.0),
+        scale: 1.0,
+    };
+    pose.validate().map_err(|e| format!("`{s}`: {e}"))?;
+    Ok((q, offset))
 }
 
 impl ObjectArgs {
+    /// The object file's source with --scale and --pose over its own placement.
+    fn file_source(&self, path: &std::path::Path) -> Result<ObjectSource> {
+        let source = ObjectSource::file(path);
+        if self.scale.is_none() && self.pose.is_none() {
+            return Ok(source);
+        }
+        let mut pose = source.pose()?;
+        if let Some(s) = self.scale {
+            pose.scale = s;
+        }
+        if let Some((q, offset)) = self.pose {
+            pose.orientation = q;
+            pose.offset_z = offset.unwrap_or(pose.offset_z);
+        }
+        Ok(ObjectSource::File {
+            path: path.to_path_buf(),
+            pose: Some(pose),
+        })
+    }
+
     pub fn scene(&self, task: Task) -> Result<Scene> {
         let (object, category) = match (&self.object, self.category) {
             (Some(path), c) => {
@@ -211,7 +274,7 @@ impl ObjectArgs {
                 if let Some(what) = what {
                     return Err(usage(format!("--object {}: {what}", path.display())));
                 }
-                (ObjectSource::File { path: path.clone() }, c)
+                (self.file_source(path)?, c)
             }
             (None, Some(c)) => {
                 let index = self.instance.unwrap_or_else(|| {

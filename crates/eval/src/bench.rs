@@ -138,9 +138,7 @@ pub fn row_scene(
             &mut ChaCha8Rng::seed_from_u64(row_seed(seed, task, row, k)),
             task,
             None,
-            ObjectSource::File {
-                path: o.urdf.clone(),
-            },
+            ObjectSource::file(o.urdf.clone()),
             physics,
         ),
     }

@@ -11,7 +11,6 @@ use crate::{EvalError, Result};
 use ndarray::Array3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use std::path::PathBuf;
 use umpnet_policy::build_observation_into;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::{Pick, SimEnv, StepLabels};
@@ -32,8 +31,8 @@ pub struct EnvConfig {
     pub resolution: (u32, u32),
     pub renderer: RendererKind,
     pub dataset_seed: u64,
-    /// A URDF file instead of generated instances.
-    pub object: Option<PathBuf>,
+    /// A URDF file (and where it sits) instead of generated instances.
+    pub object: Option<ObjectSource>,
     pub physics: PhysicsProfile,
 }
 
@@ -157,7 +156,7 @@ impl TrainEnv {
     /// A fresh scene from this environment's random stream.
     pub fn sample_scene(&mut self) -> Result<Scene> {
         let (object, category) = match &self.cfg.object {
-            Some(p) => (ObjectSource::File { path: p.clone() }, None),
+            Some(o) => (o.clone(), None),
             None => {
                 let c = self.cfg.categories[self.rng.random_range(0..self.cfg.categories.len())];
                 let split = if c.is_train() {

@@ -14,11 +14,10 @@ use pyo3::types::PyDict;
 use std::path::PathBuf;
 use std::sync::Arc;
 use umpnet_eval::EvalError;
-use umpnet_eval::train_env::{EnvConfig, PositionInfo, ScriptedAction, TrainEnv};
+use umpnet_eval::train_env::{PositionInfo, ScriptedAction, TrainEnv};
 use umpnet_policy::cem::Mode;
 use umpnet_policy::{DecisionInput, ModelPackage, UmpnetPolicy};
 use umpnet_sim::env::StepLabels;
-use umpnet_sim::objects::{Category, InstanceSplit};
 use umpnet_sim::scene::{Scene, Task};
 
 /// Bounds on what a caller may ask for: far above any machine's use, far below
@@ -72,96 +71,6 @@ pub(crate) fn scene_from_py(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
         )));
     };
     Scene::from_json(&text).map_err(|e| PyValueError::new_err(e.to_string()))
-}
-
-/// `category=` takes one name or a list of names.
-#[derive(FromPyObject)]
-pub(crate) enum Categories {
-    One(String),
-    Many(Vec<String>),
-}
-
-impl Categories {
-    fn names(self) -> Vec<String> {
-        match self {
-            Categories::One(c) => vec![c],
-            Categories::Many(c) => c,
-        }
-    }
-}
-
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn make_config(
-    category: Option<Categories>,
-    split: &str,
-    resolution: (i64, i64),
-    task: &str,
-    object_dir: Option<PathBuf>,
-    renderer: &str,
-    dataset_seed: u64,
-    physics: &str,
-) -> PyResult<EnvConfig> {
-    let task: Task = task
-        .parse()
-        .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
-    let split = match split {
-        "train" => InstanceSplit::Train,
-        "test" => InstanceSplit::Test,
-        s => {
-            return Err(PyValueError::new_err(format!(
-                "split `{s}`: expected train or test"
-            )));
-        }
-    };
-    // Taken as signed so that a negative size is this message, not an OverflowError.
-    let (Ok(height), Ok(width)) = (u32::try_from(resolution.0), u32::try_from(resolution.1)) else {
-        return Err(PyValueError::new_err(format!(
-            "resolution {resolution:?}: expected (height, width), each in 8..=4096"
-        )));
-    };
-    if !(8..=4096).contains(&height) || !(8..=4096).contains(&width) {
-        return Err(PyValueError::new_err(format!(
-            "resolution {resolution:?}: expected (height, width), each in 8..=4096"
-        )));
-    }
-    let mut cfg = EnvConfig::new(task, split);
-    cfg.physics = physics
-        .parse()
-        .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
-    cfg.resolution = (height, width);
-    cfg.dataset_seed = dataset_seed;
-    cfg.renderer = renderer
-        .parse()
-        .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
-    if let Some(names) = category.map(Categories::names) {
-        if names.is_empty() {
-            return Err(PyValueError::new_err(
-                "category: expected a category name or a non-empty list of names",
-            ));
-        }
-        cfg.categories = names
-            .iter()
-            .map(|n| {
-                n.parse::<Category>()
-                    .map_err(|e| PyValueError::new_err(e.to_string()))
-            })
-            .collect::<PyResult<_>>()?;
-    }
-    if let Some(dir) = object_dir {
-        let urdf = if dir.is_dir() {
-            dir.join("mobility.urdf")
-        } else {
-            dir
-        };
-        if !urdf.is_file() {
-            return Err(PyValueError::new_err(format!(
-                "object_dir: {} not found",
-                urdf.display()
-            )));
-        }
-        cfg.object = Some(urdf);
-    }
-    Ok(cfg)
 }
 
 fn labels_dict<'py>(py: Python<'py>, l: &StepLabels) -> PyResult<Bound<'py, PyDict>> {
@@ -240,32 +149,20 @@ struct Env {
 
 #[pymethods]
 impl Env {
+    /// `Env(category=None, seed=0, copy=False, config=None, **options)`:
+    /// the scenes come from `config` (an `EnvConfig`), or from `category`
+    /// and `options`, `EnvConfig`'s keyword arguments.
     #[new]
-    #[pyo3(signature = (category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", copy=false))]
-    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (category=None, seed=0, copy=false, config=None, **options))]
     fn new(
         py: Python<'_>,
-        category: Option<Categories>,
-        split: &str,
+        category: Option<Bound<'_, PyAny>>,
         seed: u64,
-        resolution: (i64, i64),
-        task: &str,
-        object_dir: Option<PathBuf>,
-        renderer: &str,
-        dataset_seed: u64,
-        physics: &str,
         copy: bool,
+        config: Option<PyRef<'_, config::EnvConfig>>,
+        options: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
-        let cfg = make_config(
-            category,
-            split,
-            resolution,
-            task,
-            object_dir,
-            renderer,
-            dataset_seed,
-            physics,
-        )?;
+        let cfg = config::resolve(py, category, config, options)?;
         let (h, w) = (cfg.resolution.0 as usize, cfg.resolution.1 as usize);
         Ok(Self {
             inner: TrainEnv::new(cfg, seed).map_err(eval_err)?,
@@ -567,6 +464,7 @@ fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
 
 mod arrays;
 mod buffers;
+mod config;
 mod fields;
 mod physics;
 mod probe;
@@ -624,6 +522,7 @@ fn _umpnet(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(score_step, m)?)?;
     m.add("DELTA", umpnet_sim::env::DELTA)?;
     m.add_class::<Env>()?;
+    m.add_class::<config::EnvConfig>()?;
     m.add_class::<physics::Articulation>()?;
     m.add_class::<vec_env::VecEnv>()?;
     m.add_class::<Policy>()?;

@@ -7,15 +7,13 @@
 )]
 use crate::arrays::{Arr1, Arr2, Arr3};
 use crate::{
-    Categories, MAX_ENVS, buffers, eval_err, make_config, parse_direction, probe, scene_from_py,
-    scene_to_py, scripted_to_py,
+    MAX_ENVS, buffers, eval_err, parse_direction, probe, scene_from_py, scene_to_py, scripted_to_py,
 };
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
-use std::path::PathBuf;
 use umpnet_eval::EvalError;
 use umpnet_eval::train_env::{PositionInfo, TrainEnv, render_pending};
 use umpnet_sim::env::StepLabels;
@@ -42,23 +40,25 @@ pub(crate) struct VecEnv {
 
 #[pymethods]
 impl VecEnv {
+    /// `VecEnv(n, category=None, seed=0, copy=False, batch_render=True,
+    /// config=None, **options)`: environment i has seed `seed + i`; the
+    /// scenes come from `config` (an `EnvConfig`), or from `category` and
+    /// `options`, `EnvConfig`'s keyword arguments.
     #[new]
-    #[pyo3(signature = (n, category=None, split="train", seed=0, resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", copy=false, batch_render=true))]
-    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (n, category=None, seed=0, copy=false, batch_render=true, config=None, **options))]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "Python keyword arguments, each with a default"
+    )]
     fn new(
         py: Python<'_>,
         n: i64,
-        category: Option<Categories>,
-        split: &str,
+        category: Option<Bound<'_, PyAny>>,
         seed: u64,
-        resolution: (i64, i64),
-        task: &str,
-        object_dir: Option<PathBuf>,
-        renderer: &str,
-        dataset_seed: u64,
-        physics: &str,
         copy: bool,
         batch_render: bool,
+        config: Option<PyRef<'_, crate::config::EnvConfig>>,
+        options: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let n = match usize::try_from(n) {
             Ok(n) if (1..=MAX_ENVS).contains(&n) => n,
@@ -68,16 +68,7 @@ impl VecEnv {
                 )));
             }
         };
-        let cfg = make_config(
-            category,
-            split,
-            resolution,
-            task,
-            object_dir,
-            renderer,
-            dataset_seed,
-            physics,
-        )?;
+        let cfg = crate::config::resolve(py, category, config, options)?;
         let envs = (0..n)
             .map(|i| TrainEnv::new(cfg.clone(), seed + i as u64))
             .collect::<Result<Vec<_>, _>>()

@@ -599,3 +599,43 @@ def test_a_gym_observation_carries_the_gripper_pixel_the_shipped_policy_needs():
     )[0]
     obs, *_ = env.step({"phase": 1, "pixel": np.zeros(2, np.int64), "direction": np.asarray(decision["direction"])})
     assert env.observation_space.contains(obs)
+
+
+def test_one_env_config_serves_env_and_vec_env_and_places_object_files():
+    """EnvConfig declares the scene settings once: Env(config=c) and
+    VecEnv(n, config=c) are Env(**options) and VecEnv(n, **options); scale
+    and pose place an object file over its object_meta_info.json."""
+    cabinet = str(Path(__file__).resolve().parents[3] / "crates" / "sim" / "tests" / "data" / "cabinet.urdf")
+    options = {"split": "test", "resolution": (48, 64), "task": "goal", "renderer": "cpu"}
+    config = umpnet.EnvConfig("Door", **options)
+    assert "Door" in repr(config) and "goal" in repr(config)
+    a = umpnet.Env(config=config, seed=4, copy=True).reset()
+    b = umpnet.Env("Door", seed=4, copy=True, **options).reset()
+    assert np.array_equal(a["image"], b["image"]) and np.array_equal(a["reference"], b["reference"])
+    v = umpnet.VecEnv(2, config=config, seed=4, copy=True).reset()
+    assert np.array_equal(v["image"][0], a["image"])
+    with pytest.raises(ValueError, match="not both"):
+        umpnet.Env(config=config, split="train")
+    with pytest.raises(TypeError, match="splt"):
+        umpnet.Env("Door", splt="test")
+    with pytest.raises(ValueError, match="object_dir"):
+        umpnet.EnvConfig(scale=0.5)
+
+    def object_pixels(**placement):
+        env = umpnet.Env(object_dir=cabinet, seed=1, resolution=(96, 128), renderer="cpu", copy=True, **placement)
+        obs = env.reset()
+        return int((obs["segmentation"] > 1).sum()), env.scene
+
+    full, scene = object_pixels()
+    half, half_scene = object_pixels(scale=0.5)
+    assert half_scene["object"]["pose"]["scale"] == 0.5 and "pose" not in scene["object"]
+    assert 0.1 * full < half < 0.5 * full, (full, half)  # a quarter of the area, give or take perspective
+    lying, lying_scene = object_pixels(pose=(0.7071068, 0, 0, 0.7071068, 0.0))
+    assert lying_scene["object"]["pose"]["orientation"] == pytest.approx([0.7071068, 0, 0, 0.7071068])
+    assert lying != full
+    with pytest.raises(ValueError, match="unit quaternion"):
+        umpnet.Env(object_dir=cabinet, pose=(1, 1, 0, 0))
+    with pytest.raises(ValueError, match="4 numbers|qx, qy, qz, qw"):
+        umpnet.Env(object_dir=cabinet, pose=(1, 0))
+    with pytest.raises(ValueError, match="scale"):
+        umpnet.Env(object_dir=cabinet, scale=-1.0)

@@ -41,17 +41,36 @@ pub enum ObjectSource {
         dataset_seed: u64,
     },
     /// A URDF file on disk (PartNet-Mobility or generated).
-    File { path: PathBuf },
+    File {
+        path: PathBuf,
+        /// Where the file's object sits, given by the user (`--scale`,
+        /// `--pose`); absent: from `object_meta_info.json` beside the file.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pose: Option<ObjectPose>,
+    },
 }
 
 impl ObjectSource {
-    /// Where the file's object sits: from `object_meta_info.json` beside a
-    /// URDF when there is one (PartNet-Mobility's placement, as the paper's
-    /// code reads it), else as the file is.
+    /// A URDF file placed by its `object_meta_info.json`, if any.
+    pub fn file(path: impl Into<PathBuf>) -> Self {
+        ObjectSource::File {
+            path: path.into(),
+            pose: None,
+        }
+    }
+
+    /// Where the file's object sits: the pose given with the file, else
+    /// `object_meta_info.json` beside a URDF when there is one
+    /// (PartNet-Mobility's placement, as the paper's code reads it), else as
+    /// the file is.
     pub fn pose(&self) -> Result<ObjectPose> {
-        let ObjectSource::File { path } = self else {
+        let ObjectSource::File { path, pose } = self else {
             return Ok(objects::generated_pose());
         };
+        if let Some(p) = pose {
+            p.validate()?;
+            return Ok(*p);
+        }
         let meta = path.with_file_name("object_meta_info.json");
         if !meta.is_file() {
             return Ok(ObjectPose::default());
@@ -88,7 +107,7 @@ impl ObjectSource {
                 index,
                 dataset_seed,
             } => objects::generate(*category, *index, *dataset_seed).file_model(),
-            ObjectSource::File { path } => load_urdf(path),
+            ObjectSource::File { path, .. } => load_urdf(path),
         }
     }
 
@@ -398,7 +417,7 @@ mod tests {
         let urdf = objects::generate(Category::Microwave, 0, 0)
             .write(dir.path())
             .unwrap();
-        let source = ObjectSource::File { path: urdf.clone() };
+        let source = ObjectSource::file(urdf.clone());
         assert_eq!(source.pose().unwrap(), objects::generated_pose());
         let meta = urdf.with_file_name("object_meta_info.json");
         std::fs::write(

@@ -199,7 +199,7 @@ fn an_object_with_the_most_links_allowed_renders_on_both_renderers() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("many.urdf");
     std::fs::write(&path, urdf).unwrap();
-    let object = ObjectSource::File { path };
+    let object = ObjectSource::file(path);
     let model = object.load_scaled().unwrap();
     assert_eq!(model.links.len(), umpnet_sim::urdf::MAX_LINKS);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);

@@ -3,6 +3,9 @@
 - ``Env``: one simulated scene; ``reset``, ``step_position(row, col)``,
   ``step_direction(xyz)``; observations are dicts of numpy arrays.
 - ``VecEnv``: n environments stepped in parallel Rust threads.
+- ``EnvConfig``: what scenes they sample (categories or an object file with
+  its ``scale``/``pose``, split, task, resolution, renderer, physics), given
+  as ``config=`` or as its keyword arguments to either.
 - ``Policy``: the Rust policy runtime on an exported model package;
   ``Policy.act(obs, task)`` drives ``umpnet.gym``'s environments.
 - ``Articulation``: the physics of one URDF object (grasp at a world point,
@@ -19,7 +22,7 @@ import tempfile
 # is unsound once other threads run.
 os.environ.setdefault("XDG_RUNTIME_DIR", tempfile.gettempdir())
 
-from ._umpnet import Articulation, Env, VecEnv, __version__, categories
+from ._umpnet import Articulation, Env, EnvConfig, VecEnv, __version__, categories
 from .policy import Policy
 
-__all__ = ["Articulation", "Env", "Policy", "VecEnv", "__version__", "categories"]
+__all__ = ["Articulation", "Env", "EnvConfig", "Policy", "VecEnv", "__version__", "categories"]

@@ -8,19 +8,31 @@ Observation: TypeAlias = dict[str, np.ndarray]
 
 def categories() -> list[tuple[str, str, int]]: ...
 
-class Env:
+class EnvConfig:
     def __init__(
         self,
         category: str | Sequence[str] | None = None,
         split: str = "train",
-        seed: int = 0,
         resolution: tuple[int, int] = (96, 128),
         task: str = "exploration",
-        object_dir: str | None = None,
+        object_dir: str | os.PathLike[str] | None = None,
         renderer: str = "auto",
         dataset_seed: int = 0,
         physics: str = "reference",
+        scale: float | None = None,
+        pose: Sequence[float] | None = None,
+    ) -> None: ...
+
+# `**options` are EnvConfig's keyword arguments (split, resolution, task,
+# object_dir, renderer, dataset_seed, physics, scale, pose).
+class Env:
+    def __init__(
+        self,
+        category: str | Sequence[str] | None = None,
+        seed: int = 0,
         copy: bool = False,
+        config: EnvConfig | None = None,
+        **options: Any,
     ) -> None: ...
     def reset(self, scene: dict[str, Any] | str | None = None) -> Observation: ...
     def observe(self) -> Observation: ...
@@ -38,16 +50,11 @@ class VecEnv:
         self,
         n: int,
         category: str | Sequence[str] | None = None,
-        split: str = "train",
         seed: int = 0,
-        resolution: tuple[int, int] = (96, 128),
-        task: str = "exploration",
-        object_dir: str | None = None,
-        renderer: str = "auto",
-        dataset_seed: int = 0,
-        physics: str = "reference",
         copy: bool = False,
         batch_render: bool = True,
+        config: EnvConfig | None = None,
+        **options: Any,
     ) -> None: ...
     def __len__(self) -> int: ...
     def reset(self, scenes: Sequence[dict[str, Any] | str] | None = None) -> Observation: ...
