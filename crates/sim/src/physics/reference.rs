@@ -317,46 +317,41 @@ impl ReferenceArticulation {
         steps
     }
 
-    /// One solver update of length `h` covering `k` reference steps.
+    /// One solver update of length `h` covering `k` reference steps, in
+    /// Bullet's stages: the rows of the constraints, the sweeps that solve
+    /// them, then the velocities integrated into positions.
     fn update(&mut self, target: Vec3, gain: f32, h: f32, k: usize) {
         let Some(mount) = self.mount.as_ref() else {
             return;
         };
         let desired = (target - mount.position) * (gain / h);
-        let motor_bound = (self.gripper_max_force * h) as f64;
-        let mount_mass = self.params.mount_mass as f64;
         if mount.suction.is_none() {
-            // The mount alone: three independent force-limited velocity motors.
-            let dv = self.gripper_max_force * h / self.params.mount_mass;
-            let v = mount.velocity;
-            let v = Vec3::new(
-                desired.x.clamp(v.x - dv, v.x + dv),
-                desired.y.clamp(v.y - dv, v.y + dv),
-                desired.z.clamp(v.z - dv, v.z + dv),
-            );
-            if let Some(m) = self.mount.as_mut() {
-                m.velocity = v;
-                m.position += v * h;
-            }
+            self.move_free_mount(desired, h);
             return;
         }
         let Some(s) = mount.suction.as_ref() else {
             return;
         };
         let n = s.chain.len();
-        let hk = h as f64;
         let erp = 1.0 - (1.0 - self.params.erp as f64).powi(k as i32);
-        let point = self.world_from_link[s.link].transform_point(s.point_in_link);
-
-        // Fixed-size: this runs at every 1/240 s step, hundreds of times per action.
-        let axes = chain_axes(&self.model, &self.world_from_link, &s.chain);
-        let linear = |a: usize, at: Vec3| linear(&axes[a], at);
         let inverse_mass = s
             .fixed_inverse_mass
             .or_else(|| chain_inverse_mass(&self.model, &self.world_from_link, &s.chain, &s.moved));
         let Some(inv_mass) = inverse_mass else {
             return;
         };
+        let responses = Responses {
+            n,
+            inv_mass: &inv_mass,
+            mount_mass: self.params.mount_mass as f64,
+        };
+        let mut x = [0.0f64; MAX_DOFS];
+        for (a, &j) in s.chain.iter().enumerate() {
+            x[a] = self.qd[j] as f64;
+        }
+        for i in 0..3 {
+            x[n + i] = mount.velocity[i] as f64;
+        }
 
         // The rows in the order Bullet's solver holds them (measured against
         // PyBullet by the differential suite): the suction, the mount's
@@ -367,107 +362,71 @@ impl ReferenceArticulation {
         // because of it.
         let space = &mut *self.row_space;
         space.begin(n + 3);
-        // A row's response: the chain's inverse mass on the chain's part of
-        // its Jacobian, the mount's on the mount's.
-        let response_of = |jacobian: &[f64; MAX_DOFS]| {
-            let mut response = [0.0; MAX_DOFS];
-            for a in 0..n {
-                response[a] = (0..n).map(|b| inv_mass[a * n + b] * jacobian[b]).sum();
-            }
-            for i in 0..3 {
-                response[n + i] = jacobian[n + i] / mount_mass;
-            }
-            response
-        };
-        // A row on one velocity (a motor, a limit, a brake): its response is
-        // a column of the inverse mass.
-        let unit_response = |i: usize, sign: f64| {
-            let mut response = [0.0; MAX_DOFS];
-            if i < n {
-                for (a, r) in response.iter_mut().enumerate().take(n) {
-                    *r = inv_mass[a * n + i] * sign;
-                }
-            } else {
-                response[i] = sign / mount_mass;
-            }
-            response
-        };
-        let unit = |i: usize, sign: f64| {
-            let mut j = [0.0; MAX_DOFS];
-            j[i] = sign;
-            j
-        };
-        let mut x = [0.0f64; MAX_DOFS];
-        for (a, &j) in s.chain.iter().enumerate() {
-            x[a] = self.qd[j] as f64;
-        }
-        for i in 0..3 {
-            x[n + i] = mount.velocity[i] as f64;
-        }
-        // The suction, per world axis: point velocity minus mount velocity.
+        let point = self.world_from_link[s.link].transform_point(s.point_in_link);
+        // Fixed-size: this runs at every 1/240 s step, hundreds of times per action.
+        let axes = chain_axes(&self.model, &self.world_from_link, &s.chain);
         let suction_bound = (self.suction_max_force * h) as f64;
-        let gap = point - mount.position;
-        let mut point_velocity = [Vec3::ZERO; MAX_CHAIN];
-        for (a, v) in point_velocity.iter_mut().enumerate().take(n) {
-            *v = linear(a, point);
-        }
-        for i in 0..3 {
-            let mut jac = [0.0; MAX_DOFS];
-            for (ja, v) in jac.iter_mut().zip(&point_velocity).take(n) {
-                *ja = v[i] as f64;
-            }
-            jac[n + i] = -1.0;
-            space.push(
-                &jac,
-                &response_of(&jac),
-                -(gap[i] as f64) * erp / hk,
-                -suction_bound,
-                suction_bound,
-            );
-        }
-        // The mount's three velocity motors.
+        let hk = h as f64;
+        push_suction_rows(
+            space,
+            &responses,
+            &axes,
+            (point, point - mount.position),
+            (erp, hk),
+            suction_bound,
+        );
+        let motor_bound = (self.gripper_max_force * h) as f64;
         for i in 0..3 {
             space.push(
                 &unit(n + i, 1.0),
-                &unit_response(n + i, 1.0),
+                &responses.unit(n + i, 1.0),
                 desired[i] as f64,
                 -motor_bound,
                 motor_bound,
             );
         }
-        // Joint limits. Bullet's rule: while clear of a limit, the solve may
-        // change the joint's speed toward it by at most gap/h (its speed
-        // before the solve is not counted); past it, the error is closed at
-        // the erp rate.
-        for (a, &j) in s.chain.iter().enumerate() {
-            let jm = &self.model.joints[j];
-            if jm.kind == JointKind::Continuous || !jm.lower.is_finite() {
-                continue;
-            }
-            let q = self.q[j] as f64;
-            for (sign, gap) in [(1.0, q - jm.lower as f64), (-1.0, jm.upper as f64 - q)] {
-                let target = if gap > 0.0 {
-                    sign * x[a] - gap / hk
-                } else {
-                    -gap * erp / hk
-                };
-                space.push(
-                    &unit(a, sign),
-                    &unit_response(a, sign),
-                    target,
-                    0.0,
-                    f64::INFINITY,
-                );
-            }
-        }
+        push_limit_rows(
+            space,
+            &responses,
+            &self.model,
+            &self.q,
+            &s.chain,
+            &x,
+            hk,
+            erp,
+        );
         // The default velocity motor of each chain joint: a dry brake.
         let brake = (self.params.brake_impulse * k as f32) as f64;
         for a in 0..n {
-            space.push(&unit(a, 1.0), &unit_response(a, 1.0), 0.0, -brake, brake);
+            space.push(&unit(a, 1.0), &responses.unit(a, 1.0), 0.0, -brake, brake);
         }
 
         solve(&mut x, self.params.solver_iterations, &mut self.row_space);
+        self.integrate(&x, h);
+    }
 
+    /// The mount alone: three independent force-limited velocity motors.
+    fn move_free_mount(&mut self, desired: Vec3, h: f32) {
+        let dv = self.gripper_max_force * h / self.params.mount_mass;
+        if let Some(m) = self.mount.as_mut() {
+            let v = m.velocity;
+            let v = Vec3::new(
+                desired.x.clamp(v.x - dv, v.x + dv),
+                desired.y.clamp(v.y - dv, v.y + dv),
+                desired.z.clamp(v.z - dv, v.z + dv),
+            );
+            m.velocity = v;
+            m.position += v * h;
+        }
+    }
+
+    /// The solved velocities (the chain's joints, then the mount's three)
+    /// into speeds and positions, and the moved links reposed.
+    fn integrate(&mut self, x: &[f64; MAX_DOFS], h: f32) {
+        let Some(s) = self.mount.as_ref().and_then(|m| m.suction.as_ref()) else {
+            return;
+        };
+        let n = s.chain.len();
         let max_speed = self.params.max_joint_speed as f64;
         let mut chain_buf = [0usize; MAX_CHAIN];
         chain_buf[..n].copy_from_slice(&s.chain);
@@ -483,6 +442,123 @@ impl ReferenceArticulation {
         }
         if let Some(s) = self.mount.as_ref().and_then(|m| m.suction.as_ref()) {
             repose(&self.model, &self.q, &mut self.world_from_link, &s.reposed);
+        }
+    }
+}
+
+/// How a row's impulse changes the velocities: through the chain's inverse
+/// mass for the object's joints, the mount's mass for the mount's three.
+struct Responses<'a> {
+    n: usize,
+    inv_mass: &'a ChainMatrix,
+    mount_mass: f64,
+}
+
+impl Responses<'_> {
+    /// A row's response: the chain's inverse mass on the chain's part of
+    /// its Jacobian, the mount's on the mount's.
+    fn of(&self, jacobian: &[f64; MAX_DOFS]) -> [f64; MAX_DOFS] {
+        let n = self.n;
+        let mut response = [0.0; MAX_DOFS];
+        for a in 0..n {
+            response[a] = (0..n).map(|b| self.inv_mass[a * n + b] * jacobian[b]).sum();
+        }
+        for i in 0..3 {
+            response[n + i] = jacobian[n + i] / self.mount_mass;
+        }
+        response
+    }
+
+    /// A row on one velocity (a motor, a limit, a brake): its response is a
+    /// column of the inverse mass.
+    fn unit(&self, i: usize, sign: f64) -> [f64; MAX_DOFS] {
+        let n = self.n;
+        let mut response = [0.0; MAX_DOFS];
+        if i < n {
+            for (a, r) in response.iter_mut().enumerate().take(n) {
+                *r = self.inv_mass[a * n + i] * sign;
+            }
+        } else {
+            response[i] = sign / self.mount_mass;
+        }
+        response
+    }
+}
+
+/// The Jacobian of a row on velocity `i` alone.
+fn unit(i: usize, sign: f64) -> [f64; MAX_DOFS] {
+    let mut j = [0.0; MAX_DOFS];
+    j[i] = sign;
+    j
+}
+
+/// The suction, per world axis: the grasped `point`'s velocity minus the
+/// mount's, closing `gap` (point minus mount) at the `erp` rate.
+fn push_suction_rows(
+    space: &mut RowSpace,
+    responses: &Responses<'_>,
+    axes: &[WorldAxis; MAX_CHAIN],
+    (point, gap): (Vec3, Vec3),
+    (erp, hk): (f64, f64),
+    bound: f64,
+) {
+    let n = responses.n;
+    let mut point_velocity = [Vec3::ZERO; MAX_CHAIN];
+    for (a, v) in point_velocity.iter_mut().enumerate().take(n) {
+        *v = linear(&axes[a], point);
+    }
+    for i in 0..3 {
+        let mut jac = [0.0; MAX_DOFS];
+        for (ja, v) in jac.iter_mut().zip(&point_velocity).take(n) {
+            *ja = v[i] as f64;
+        }
+        jac[n + i] = -1.0;
+        space.push(
+            &jac,
+            &responses.of(&jac),
+            -(gap[i] as f64) * erp / hk,
+            -bound,
+            bound,
+        );
+    }
+}
+
+/// Joint limits. Bullet's rule: while clear of a limit, the solve may change
+/// the joint's speed toward it by at most gap/h (its speed before the solve,
+/// `x`, is not counted); past it, the error is closed at the erp rate.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "one stage of the solver's step: what it reads, named"
+)]
+fn push_limit_rows(
+    space: &mut RowSpace,
+    responses: &Responses<'_>,
+    model: &ObjectModel,
+    q: &[f32],
+    chain: &[usize],
+    x: &[f64; MAX_DOFS],
+    hk: f64,
+    erp: f64,
+) {
+    for (a, &j) in chain.iter().enumerate() {
+        let jm = &model.joints[j];
+        if jm.kind == JointKind::Continuous || !jm.lower.is_finite() {
+            continue;
+        }
+        let q = q[j] as f64;
+        for (sign, gap) in [(1.0, q - jm.lower as f64), (-1.0, jm.upper as f64 - q)] {
+            let target = if gap > 0.0 {
+                sign * x[a] - gap / hk
+            } else {
+                -gap * erp / hk
+            };
+            space.push(
+                &unit(a, sign),
+                &responses.unit(a, sign),
+                target,
+                0.0,
+                f64::INFINITY,
+            );
         }
     }
 }
