@@ -281,7 +281,7 @@ impl ObjectArgs {
                     nth_instance(
                         c,
                         InstanceSplit::Test,
-                        (self.seed % umpnet_eval::bench::INSTANCES_PER_CATEGORY as u64) as u32,
+                        (self.seed % umpnet_eval::benchmark::INSTANCES_PER_CATEGORY as u64) as u32,
                     )
                 });
                 (
@@ -296,7 +296,7 @@ impl ObjectArgs {
             (None, None) => return Err(usage("give --category C or --object DIR/mobility.urdf")),
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.seed);
-        Ok(umpnet_eval::bench::sample_visible_scene(
+        Ok(umpnet_eval::benchmark::sample_visible_scene(
             &mut rng,
             task,
             category,

@@ -4,7 +4,7 @@ use crate::usage;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use umpnet_eval::bench::PolicyFactory;
+use umpnet_eval::benchmark::PolicyFactory;
 use umpnet_eval::learned::LearnedPolicy;
 use umpnet_policy::cem::Sampler;
 use umpnet_policy::policy::DirectionFilter;

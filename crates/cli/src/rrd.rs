@@ -316,7 +316,7 @@ mod tests {
         .expect("the shipped model (and ONNX Runtime) must load");
         let (_, make) = &resolved.factories[0];
         let (h, w) = resolved.resolutions["umpnet"];
-        let scene = umpnet_eval::bench::benchmark_scene(
+        let scene = umpnet_eval::benchmark::benchmark_scene(
             0,
             Task::Goal,
             Category::Door,

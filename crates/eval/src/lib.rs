@@ -1,6 +1,6 @@
 //! umpnet-eval: episodes, reference policies and the UMPNet benchmark. The
 //! one crate that joins the simulator and the policy runtime.
-pub mod bench;
+pub mod benchmark;
 pub mod episode;
 pub mod learned;
 pub mod policy;

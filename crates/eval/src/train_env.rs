@@ -167,7 +167,7 @@ impl TrainEnv {
                 let pool = if split == InstanceSplit::Train {
                     TRAIN_INSTANCES
                 } else {
-                    crate::bench::INSTANCES_PER_CATEGORY
+                    crate::benchmark::INSTANCES_PER_CATEGORY
                 };
                 let index = nth_instance(c, split, self.rng.random_range(0..pool));
                 (
@@ -180,7 +180,7 @@ impl TrainEnv {
                 )
             }
         };
-        crate::bench::sample_visible_scene(
+        crate::benchmark::sample_visible_scene(
             &mut self.rng,
             self.cfg.task,
             category,

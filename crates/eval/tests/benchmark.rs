@@ -7,7 +7,7 @@
     reason = "tests and benchmarks fail by panicking"
 )]
 use std::sync::Arc;
-use umpnet_eval::bench::{
+use umpnet_eval::benchmark::{
     BenchConfig, PolicyFactory, Row, Shard, object_rows, run_benchmark, stream_benchmark,
 };
 use umpnet_eval::policy::{Decision, Observation, Policy, StepRecord};
@@ -83,7 +83,7 @@ fn streamed_scenes_arrive_in_order_and_a_stop_keeps_a_whole_prefix() {
         Arc::new(|| Ok(umpnet_eval::scripted_policy("oracle").expect("oracle exists")));
     let policies = [("oracle".to_string(), oracle)];
     let whole = run_benchmark(&cfg, &policies, &|| {});
-    let key = |o: &umpnet_eval::bench::EpisodeOutcome| (o.category, o.index);
+    let key = |o: &umpnet_eval::benchmark::EpisodeOutcome| (o.category, o.index);
     let mut from_three = Vec::new();
     let never = AtomicBool::new(false);
     let end = stream_benchmark(&cfg, &policies, 3, 2, &never, &|| {}, |i, out| {

@@ -8,7 +8,7 @@
     reason = "tests and benchmarks fail by panicking"
 )]
 use rand::SeedableRng;
-use umpnet_eval::bench::benchmark_scene;
+use umpnet_eval::benchmark::benchmark_scene;
 use umpnet_eval::learned::observation_tensor;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::SimEnv;

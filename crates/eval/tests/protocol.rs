@@ -7,7 +7,7 @@
     reason = "tests and benchmarks fail by panicking"
 )]
 use umpnet_eval::Protocol;
-use umpnet_eval::bench::benchmark_scene;
+use umpnet_eval::benchmark::benchmark_scene;
 use umpnet_eval::episode::{EpisodeConfig, run_episode};
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;

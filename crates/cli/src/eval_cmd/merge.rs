@@ -9,7 +9,7 @@ use crate::{Ctx, usage};
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use umpnet_eval::bench::Shard;
+use umpnet_eval::benchmark::Shard;
 
 #[derive(clap::Args)]
 pub struct MergeArgs {

@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use stream::{EpisodeWriter, RunState};
 use umpnet_eval::Protocol;
-use umpnet_eval::bench::{BenchConfig, PolicyFactory, Row, Shard, object_rows, stream_benchmark};
+use umpnet_eval::benchmark::{BenchConfig, PolicyFactory, Row, Shard, object_rows, stream_benchmark};
 use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
@@ -413,7 +413,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     // Enough scenes per chunk that waiting for its slowest costs little; a chunk's episodes
     // are written (and committed) in canonical order before the next starts.
     let chunk = pool.current_num_threads().max(1) * 32;
-    let sink = |i: u64, outcomes: Vec<umpnet_eval::bench::EpisodeOutcome>| -> Result<()> {
+    let sink = |i: u64, outcomes: Vec<umpnet_eval::benchmark::EpisodeOutcome>| -> Result<()> {
         for o in &outcomes {
             let text = serde_json::to_string(o)?;
             let s = Scored::parse(&text).context("an episode outcome that does not read back")?;
@@ -504,7 +504,7 @@ fn record(
                     failed = Some(e);
                 }
             };
-            let replayed = umpnet_eval::bench::run_one(cfg, name, make, row, k, Some(&mut hook));
+            let replayed = umpnet_eval::benchmark::run_one(cfg, name, make, row, k, Some(&mut hook));
             if let Some(e) = failed {
                 return Err(e);
             }

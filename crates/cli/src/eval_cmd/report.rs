@@ -9,7 +9,7 @@ use anyhow::{Context, Result, bail};
 use std::collections::BTreeMap;
 use std::path::Path;
 use umpnet_eval::Protocol;
-use umpnet_eval::bench::Shard;
+use umpnet_eval::benchmark::Shard;
 use umpnet_eval::episode::Metrics;
 use umpnet_sim::objects::Category;
 use umpnet_sim::physics::PhysicsProfile;

@@ -12,7 +12,7 @@ use sha2::{Digest, Sha256};
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Read, Seek, Write};
 use std::path::{Path, PathBuf};
-use umpnet_eval::bench::Shard;
+use umpnet_eval::benchmark::Shard;
 
 /// The episodes file of an evaluation's `--out` folder.
 pub const EPISODES: &str = "episodes.jsonl";

@@ -3,7 +3,7 @@
 //! continuous metrics the normal approximation.
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use umpnet_eval::bench::{Running, wilson};
+use umpnet_eval::benchmark::{Running, wilson};
 use umpnet_sim::objects::Category;
 use umpnet_sim::scene::Task;
 
