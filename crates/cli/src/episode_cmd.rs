@@ -142,27 +142,8 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
     }
     let (ended, why) = end_reason(&ep, task);
     if let (Some(out), Some(d)) = (&a.out, display.as_mut()) {
-        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         let title = picture_title(&ep, task, a.object.seed, &why);
-        let steps: Vec<_> = tiles
-            .iter()
-            .map(|t| pictures::with_title(&t.at_width(t.img.width()), &title))
-            .collect();
-        for (t, p) in steps.iter().enumerate() {
-            images::save(p, &out.join(format!("step_{t:02}.png")))?;
-        }
-        // The goal task's sheet opens with the goal, so each step can be set beside it.
-        let mut sheet = Vec::with_capacity(tiles.len() + 1);
-        if let Some(goal) = d.goal()? {
-            images::save(&goal.at_width(goal.img.width()), &out.join("goal.png"))?;
-            sheet.push(goal);
-        }
-        sheet.extend(tiles);
-        images::save(
-            &pictures::contact_sheet(&sheet, &title),
-            &out.join("episode.png"),
-        )?;
-        pictures::write_gif(&steps, &out.join("episode.gif"))?;
+        write_pictures(out, d, tiles, &title)?;
     }
     if ctx.json {
         let mut value = serde_json::to_value(&ep)?;
@@ -172,7 +153,23 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         outln!("{value}");
         return Ok(());
     }
-    let what = scene
+    print_episode(&ep, task, a.object.seed, &why)?;
+    if let Some(out) = &a.out {
+        outln!("pictures in {}", out.display());
+    }
+    Ok(())
+}
+
+/// The episode as text: the grasp, a row per step, how it ended, the
+/// metrics and, exploring, the joint axis the moves imply.
+fn print_episode(
+    ep: &umpnet_eval::episode::Episode,
+    task: Task,
+    seed: u64,
+    why: &str,
+) -> Result<()> {
+    let what = ep
+        .scene
         .category
         .map(|c| c.name().to_owned())
         .unwrap_or_else(|| "object".into());
@@ -184,7 +181,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
             "exploration"
         },
         ep.policy,
-        a.object.seed
+        seed
     );
     let grasped = match (ep.valid_position, ep.joint) {
         (true, Some(j)) => format!("joint {j} (moves the link under the pixel)"),
@@ -233,12 +230,38 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         ),
     }
     if task == Task::Exploration {
-        print_axis_estimate(&ep)?;
-    }
-    if let Some(out) = &a.out {
-        outln!("pictures in {}", out.display());
+        print_axis_estimate(ep)?;
     }
     Ok(())
+}
+
+/// The step PNGs, the contact sheet (the goal first, in the goal task) and the GIF.
+fn write_pictures(
+    out: &std::path::Path,
+    display: &mut pictures::Display,
+    tiles: Vec<pictures::Tile>,
+    title: &str,
+) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let steps: Vec<_> = tiles
+        .iter()
+        .map(|t| pictures::with_title(&t.at_width(t.img.width()), title))
+        .collect();
+    for (t, p) in steps.iter().enumerate() {
+        images::save(p, &out.join(format!("step_{t:02}.png")))?;
+    }
+    // The goal task's sheet opens with the goal, so each step can be set beside it.
+    let mut sheet = Vec::with_capacity(tiles.len() + 1);
+    if let Some(goal) = display.goal()? {
+        images::save(&goal.at_width(goal.img.width()), &out.join("goal.png"))?;
+        sheet.push(goal);
+    }
+    sheet.extend(tiles);
+    images::save(
+        &pictures::contact_sheet(&sheet, title),
+        &out.join("episode.png"),
+    )?;
+    pictures::write_gif(&steps, &out.join("episode.gif"))
 }
 
 /// The pictures' title: what ran on what, and how it ended.

@@ -409,6 +409,10 @@ impl Camera {
     }
 }
 
+#[expect(
+    clippy::too_many_lines,
+    reason = "infer's inputs read and checked in the order the help lists them"
+)]
 pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     let camera = Camera::from_args(a)?;
     let grasp = match a.grasp.as_slice() {

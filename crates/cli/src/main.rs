@@ -306,6 +306,10 @@ impl ObjectArgs {
     }
 }
 
+#[expect(
+    unsafe_code,
+    reason = "SIGPIPE's default and XDG_RUNTIME_DIR, set before any thread exists"
+)]
 fn main() {
     // As Unix tools do: `umpnet objects list | head -1` ends quietly when the
     // reader goes away, instead of panicking in println! on EPIPE.

@@ -284,7 +284,7 @@ pub fn read_entities(path: &Path) -> Result<(std::collections::BTreeSet<String>,
 }
 
 #[cfg(test)]
-#[allow(
+#[expect(
     clippy::unwrap_used,
     clippy::expect_used,
     clippy::panic,

@@ -1,6 +1,10 @@
 //! Ctrl-C and SIGTERM during a long run: the first asks the run to stop
 //! after the scenes in flight and leave its files whole (and resumable); a
 //! second ends the process at once, as an impatient user expects.
+#![expect(
+    unsafe_code,
+    reason = "libc's signal, _exit and rlimit calls; each block says why it is sound"
+)]
 use std::sync::atomic::{AtomicBool, Ordering};
 
 static STOP: AtomicBool = AtomicBool::new(false);

@@ -467,7 +467,7 @@ pub fn run_one(
     make: &PolicyFactory,
     row: &Row,
     k: u32,
-    hook: Option<FrameHook>,
+    hook: Option<FrameHook<'_>>,
 ) -> Result<Episode> {
     let scene = row_scene(cfg.seed, cfg.task, row, k, cfg.dataset_seed, cfg.physics)
         .map_err(|e| EvalError::Episode(e.to_string()))?;

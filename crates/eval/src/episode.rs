@@ -123,13 +123,17 @@ pub struct HookFrame<'a> {
 pub type FrameHook<'a> = &'a mut dyn FnMut(&HookFrame<'_>);
 
 /// Runs one episode of `policy` on `scene` with a renderer of the caller's.
+#[expect(
+    clippy::too_many_lines,
+    reason = "the paper's episode loop read top to bottom, as the protocol states it"
+)]
 pub fn run_episode(
     scene: &Scene,
     camera: &Camera,
     renderer: Box<dyn Renderer>,
     policy: &mut dyn Policy,
     config: EpisodeConfig,
-    mut hook: Option<FrameHook>,
+    mut hook: Option<FrameHook<'_>>,
 ) -> Result<Episode> {
     let EpisodeConfig {
         budget,

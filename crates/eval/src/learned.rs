@@ -107,7 +107,7 @@ impl Policy for LearnedPolicy {
         self.banned.clear();
         self.reference = None;
     }
-    fn position(&mut self, obs: &Observation, env: &SimEnv) -> Result<(u32, u32)> {
+    fn position(&mut self, obs: &Observation<'_>, env: &SimEnv) -> Result<(u32, u32)> {
         self.check_resolution(obs.frame)?;
         let current = observation_tensor(obs.frame)?;
         let reference = observation_tensor(obs.reference)?;
@@ -118,7 +118,7 @@ impl Policy for LearnedPolicy {
     }
     fn direction(
         &mut self,
-        obs: &Observation,
+        obs: &Observation<'_>,
         env: &SimEnv,
         history: &[StepRecord],
     ) -> Result<Decision> {

@@ -60,10 +60,10 @@ pub trait Policy: Send {
     fn reset(&mut self, seed: u64);
     /// The pixel (row, col) to grasp. Scripted policies may read the simulator
     /// through `env`; learned ones must use only `obs`.
-    fn position(&mut self, obs: &Observation, env: &SimEnv) -> Result<(u32, u32)>;
+    fn position(&mut self, obs: &Observation<'_>, env: &SimEnv) -> Result<(u32, u32)>;
     fn direction(
         &mut self,
-        obs: &Observation,
+        obs: &Observation<'_>,
         env: &SimEnv,
         history: &[StepRecord],
     ) -> Result<Decision>;

@@ -24,7 +24,10 @@ pub struct StepScore {
 /// The score of a step from `before` to `after` of a joint that started the
 /// episode at `start` within `[lower, upper]`; `threshold` is the protocol's
 /// (labels::threshold), `goal` the goal value (unused when exploring).
-#[allow(clippy::too_many_arguments)]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the values a step is scored on, each a plain number"
+)]
 pub fn score_step(
     task: Task,
     before: f32,

@@ -48,7 +48,7 @@ impl Policy for RandomPolicy {
     fn reset(&mut self, seed: u64) {
         self.rng = ChaCha8Rng::seed_from_u64(seed);
     }
-    fn position(&mut self, obs: &Observation, _env: &SimEnv) -> Result<(u32, u32)> {
+    fn position(&mut self, obs: &Observation<'_>, _env: &SimEnv) -> Result<(u32, u32)> {
         let f = obs.frame;
         let mask: Vec<usize> = (0..f.segmentation.len())
             .filter(|&i| f.segmentation[i] >= SEG_OBJECT_BASE)
@@ -59,7 +59,7 @@ impl Policy for RandomPolicy {
         let i = mask[self.rng.random_range(0..mask.len())];
         Ok(((i as u32) / f.width, (i as u32) % f.width))
     }
-    fn direction(&mut self, _: &Observation, _: &SimEnv, _: &[StepRecord]) -> Result<Decision> {
+    fn direction(&mut self, _: &Observation<'_>, _: &SimEnv, _: &[StepRecord]) -> Result<Decision> {
         Ok(Decision::Move {
             direction: uniform_direction(&mut self.rng),
             candidates: None,
@@ -115,7 +115,7 @@ impl Policy for OraclePolicy {
     fn reset(&mut self, _seed: u64) {
         self.sign = 0.0;
     }
-    fn position(&mut self, obs: &Observation, env: &SimEnv) -> Result<(u32, u32)> {
+    fn position(&mut self, obs: &Observation<'_>, env: &SimEnv) -> Result<(u32, u32)> {
         let f = obs.frame;
         let goal_joint = env.scene().goal.as_ref().map(|g| g.joint);
         let mut best: Option<(f32, usize)> = None;
@@ -164,7 +164,7 @@ impl Policy for OraclePolicy {
     }
     fn direction(
         &mut self,
-        _obs: &Observation,
+        _obs: &Observation<'_>,
         env: &SimEnv,
         history: &[StepRecord],
     ) -> Result<Decision> {

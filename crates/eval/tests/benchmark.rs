@@ -24,10 +24,10 @@ impl Policy for Broken {
         "broken".into()
     }
     fn reset(&mut self, _: u64) {}
-    fn position(&mut self, _: &Observation, _: &SimEnv) -> Result<(u32, u32)> {
+    fn position(&mut self, _: &Observation<'_>, _: &SimEnv) -> Result<(u32, u32)> {
         Err(EvalError::Episode("policy failed on purpose".into()))
     }
-    fn direction(&mut self, _: &Observation, _: &SimEnv, _: &[StepRecord]) -> Result<Decision> {
+    fn direction(&mut self, _: &Observation<'_>, _: &SimEnv, _: &[StepRecord]) -> Result<Decision> {
         Ok(Decision::Stop)
     }
 }

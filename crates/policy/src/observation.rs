@@ -104,7 +104,7 @@ const BAND: usize = 16;
 /// Builds the H x W x 10 observation. Normals come from the depth image: the
 /// cross product of the horizontal and vertical differences, each taken
 /// toward the neighbour closer in depth so that edges do not bleed.
-pub fn build_observation(frame: &CameraFrame) -> Result<Array3<f32>> {
+pub fn build_observation(frame: &CameraFrame<'_>) -> Result<Array3<f32>> {
     let mut out = vec![0f32; frame.height * frame.width * CHANNELS];
     build_observation_into(frame, &mut out)?;
     Array3::from_shape_vec((frame.height, frame.width, CHANNELS), out)
@@ -113,7 +113,7 @@ pub fn build_observation(frame: &CameraFrame) -> Result<Array3<f32>> {
 
 /// [`build_observation`] into a caller's buffer (H x W x 10, row-major), so
 /// that a control loop reuses one allocation; every element is overwritten.
-pub fn build_observation_into(frame: &CameraFrame, out: &mut [f32]) -> Result<()> {
+pub fn build_observation_into(frame: &CameraFrame<'_>, out: &mut [f32]) -> Result<()> {
     frame.validate()?;
     let (h, w) = (frame.height, frame.width);
     if out.len() != h * w * CHANNELS {
@@ -130,7 +130,7 @@ pub fn build_observation_into(frame: &CameraFrame, out: &mut [f32]) -> Result<()
 }
 
 /// World points (None without depth) of rows `rows`, row-major.
-fn points_in_world(frame: &CameraFrame, rows: std::ops::Range<usize>) -> Vec<Option<[f32; 3]>> {
+fn points_in_world(frame: &CameraFrame<'_>, rows: std::ops::Range<usize>) -> Vec<Option<[f32; 3]>> {
     let w = frame.width;
     let mut pts = Vec::with_capacity(rows.len() * w);
     for r in rows {
@@ -145,7 +145,7 @@ fn points_in_world(frame: &CameraFrame, rows: std::ops::Range<usize>) -> Vec<Opt
     pts
 }
 
-fn observation_band(frame: &CameraFrame, r0: usize, band: &mut [f32]) {
+fn observation_band(frame: &CameraFrame<'_>, r0: usize, band: &mut [f32]) {
     let (h, w) = (frame.height, frame.width);
     let rows = band.len() / (w * CHANNELS);
     let p0 = r0.saturating_sub(1);
@@ -304,7 +304,7 @@ impl OwnedFrame {
     }
 }
 
-pub fn resize_nearest(frame: &CameraFrame, height: usize, width: usize) -> Result<OwnedFrame> {
+pub fn resize_nearest(frame: &CameraFrame<'_>, height: usize, width: usize) -> Result<OwnedFrame> {
     frame.validate()?;
     let (sx, sy) = (
         frame.width as f32 / width as f32,

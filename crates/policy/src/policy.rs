@@ -85,8 +85,8 @@ impl UmpnetPolicy {
     /// observation, only where current and goal differ (the paper's mask).
     pub fn position(
         &self,
-        observation: ArrayView3<f32>,
-        goal: Option<ArrayView3<f32>>,
+        observation: ArrayView3<'_, f32>,
+        goal: Option<ArrayView3<'_, f32>>,
     ) -> Result<PositionChoice> {
         if let Some(g) = &goal
             && g.shape() != observation.shape()
@@ -143,7 +143,7 @@ impl UmpnetPolicy {
     /// one decoder call per CEM round for all candidates of all environments.
     pub fn directions(
         &self,
-        inputs: &[DecisionInput],
+        inputs: &[DecisionInput<'_>],
         rngs: &mut [ChaCha8Rng],
     ) -> Result<Vec<CemResult>> {
         if inputs.len() != rngs.len() {
@@ -264,7 +264,7 @@ impl UmpnetPolicy {
     /// effect", so that CEM neither resamples around them nor picks them.
     fn filter(
         &self,
-        inputs: &[DecisionInput],
+        inputs: &[DecisionInput<'_>],
         cands: &[Vec<Vector3<f32>>],
         scores: &mut [Vec<Score>],
     ) {
@@ -337,7 +337,7 @@ impl UmpnetPolicy {
 
 /// The most probable class of a row of AoT probabilities in the canonical
 /// order (-1, 0, +1), as the AoT value.
-fn most_likely_aot(p: ndarray::ArrayView1<f32>) -> i8 {
+fn most_likely_aot(p: ndarray::ArrayView1<'_, f32>) -> i8 {
     let cls = (0..3).max_by(|x, y| p[*x].total_cmp(&p[*y])).unwrap_or(1);
     cls as i8 - 1
 }

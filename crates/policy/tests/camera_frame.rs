@@ -62,7 +62,7 @@ fn frame<'a>(w: usize, h: usize, rgb: &'a [u8], depth: &'a [f32]) -> CameraFrame
     }
 }
 
-fn camera_from_world(f: &CameraFrame) -> Matrix4<f32> {
+fn camera_from_world(f: &CameraFrame<'_>) -> Matrix4<f32> {
     let m = f.world_from_camera;
     Matrix4::from_fn(|i, j| m[i][j]).try_inverse().unwrap()
 }

@@ -170,7 +170,7 @@ fn decide_at(
     seed: u64,
     pixel: (usize, usize),
 ) -> Vec<umpnet_policy::cem::CemResult> {
-    let inputs: Vec<DecisionInput> = obs
+    let inputs: Vec<DecisionInput<'_>> = obs
         .iter()
         .zip(modes)
         .map(|(o, &mode)| DecisionInput {

@@ -400,7 +400,7 @@ impl Policy {
                 }
             }
         }
-        let inputs: Vec<DecisionInput> = (0..b)
+        let inputs: Vec<DecisionInput<'_>> = (0..b)
             .map(|i| DecisionInput {
                 observation: imgs[i].view(),
                 reference: refs[i].view(),
@@ -488,7 +488,10 @@ fn categories() -> Vec<(&'static str, &'static str, usize)> {
 /// what gymnasium's environments return, defined once, in Rust.
 #[pyfunction]
 #[pyo3(signature = (task, before, after, start, farthest, lower, upper, threshold, goal))]
-#[allow(clippy::too_many_arguments)]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the Rust rule's inputs, one Python argument each"
+)]
 fn score_step(
     task: &str,
     before: f32,

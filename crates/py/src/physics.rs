@@ -59,7 +59,6 @@ impl Articulation {
     /// `steps_per_update` and `solver_iterations` tune the reference solver
     /// (defaults: 1 reference step per update, as PyBullet steps, and 50 sweeps).
     #[pyo3(signature = (urdf, position=[0.0, -0.5, 0.0], orientation=[0.0, 0.0, 0.0, 1.0], scale=1.0, physics="reference", steps_per_update=None, solver_iterations=None))]
-    #[allow(clippy::too_many_arguments)]
     fn new(
         urdf: PathBuf,
         position: [f32; 3],

@@ -503,6 +503,52 @@ fn mixed_step(e: &mut TrainEnv, a: Mixed, batch: bool) -> Result<Outcome, EvalEr
     })
 }
 
+/// What the moves of a mixed step did (NaN, 0 or false for the others).
+fn move_fields(py: Python<'_>, d: &Bound<'_, PyDict>, outcomes: &[Outcome]) -> PyResult<()> {
+    let moved = |f: &dyn Fn(&StepLabels) -> f32| -> Vec<f32> {
+        outcomes
+            .iter()
+            .map(|o| match o {
+                Outcome::Move(l) => f(l),
+                _ => f32::NAN,
+            })
+            .collect()
+    };
+    d.set_item(
+        "joint_before",
+        PyArray1::from_vec(py, moved(&|l| l.joint_before)),
+    )?;
+    d.set_item(
+        "joint_after",
+        PyArray1::from_vec(py, moved(&|l| l.joint_after)),
+    )?;
+    d.set_item("r_dist", PyArray1::from_vec(py, moved(&|l| l.r_dist)))?;
+    d.set_item(
+        "aot",
+        PyArray1::from_vec(
+            py,
+            outcomes
+                .iter()
+                .map(|o| match o {
+                    Outcome::Move(l) => i64::from(l.aot),
+                    _ => 0,
+                })
+                .collect::<Vec<_>>(),
+        ),
+    )?;
+    d.set_item(
+        "suction_lost",
+        PyArray1::from_vec(
+            py,
+            outcomes
+                .iter()
+                .map(|o| matches!(o, Outcome::Move(l) if l.suction_lost))
+                .collect::<Vec<_>>(),
+        ),
+    )?;
+    Ok(())
+}
+
 fn mixed_info<'py>(
     py: Python<'py>,
     outcomes: &[Outcome],
@@ -525,15 +571,6 @@ fn mixed_info<'py>(
             .iter()
             .map(|o| match o {
                 Outcome::Grasp { info, start, goal } => f(info, *start, *goal),
-                _ => f32::NAN,
-            })
-            .collect()
-    };
-    let moved = |f: &dyn Fn(&StepLabels) -> f32| -> Vec<f32> {
-        outcomes
-            .iter()
-            .map(|o| match o {
-                Outcome::Move(l) => f(l),
                 _ => f32::NAN,
             })
             .collect()
@@ -575,38 +612,7 @@ fn mixed_info<'py>(
     )?;
     d.set_item("start", PyArray1::from_vec(py, grasp(&|_, s, _| s)))?;
     d.set_item("goal", PyArray1::from_vec(py, grasp(&|_, _, g| g)))?;
-    d.set_item(
-        "joint_before",
-        PyArray1::from_vec(py, moved(&|l| l.joint_before)),
-    )?;
-    d.set_item(
-        "joint_after",
-        PyArray1::from_vec(py, moved(&|l| l.joint_after)),
-    )?;
-    d.set_item("r_dist", PyArray1::from_vec(py, moved(&|l| l.r_dist)))?;
-    d.set_item(
-        "aot",
-        PyArray1::from_vec(
-            py,
-            outcomes
-                .iter()
-                .map(|o| match o {
-                    Outcome::Move(l) => i64::from(l.aot),
-                    _ => 0,
-                })
-                .collect::<Vec<_>>(),
-        ),
-    )?;
-    d.set_item(
-        "suction_lost",
-        PyArray1::from_vec(
-            py,
-            outcomes
-                .iter()
-                .map(|o| matches!(o, Outcome::Move(l) if l.suction_lost))
-                .collect::<Vec<_>>(),
-        ),
-    )?;
+    move_fields(py, &d, outcomes)?;
     d.set_item("budget", PyArray1::from_vec(py, budgets))?;
     Ok(d)
 }

@@ -14,7 +14,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use stream::{EpisodeWriter, RunState};
 use umpnet_eval::Protocol;
-use umpnet_eval::benchmark::{BenchConfig, PolicyFactory, Row, Shard, object_rows, stream_benchmark};
+use umpnet_eval::benchmark::{
+    BenchConfig, PolicyFactory, Row, Shard, object_rows, stream_benchmark,
+};
 use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
@@ -202,6 +204,10 @@ fn folder_digest(dir: &Path) -> Result<String> {
     Ok(format!("sha256:{:x}", h.finalize()))
 }
 
+#[expect(
+    clippy::too_many_lines,
+    reason = "the eval command's setup, run and report in order; the next to split"
+)]
 fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     let split = match (&a.split, &a.objects) {
         (Some(s), _) => Some(s.as_str()),
@@ -504,7 +510,8 @@ fn record(
                     failed = Some(e);
                 }
             };
-            let replayed = umpnet_eval::benchmark::run_one(cfg, name, make, row, k, Some(&mut hook));
+            let replayed =
+                umpnet_eval::benchmark::run_one(cfg, name, make, row, k, Some(&mut hook));
             if let Some(e) = failed {
                 return Err(e);
             }

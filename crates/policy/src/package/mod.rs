@@ -287,7 +287,7 @@ impl ModelPackage {
         f(&mut s)
     }
 
-    fn check_obs(&self, what: &str, obs: &ArrayView4<f32>) -> Result<()> {
+    fn check_obs(&self, what: &str, obs: &ArrayView4<'_, f32>) -> Result<()> {
         let i = &self.meta.input;
         let (_, h, w, c) = obs.dim();
         if [h, w, c] != [i.height, i.width, CHANNELS] {
@@ -302,7 +302,7 @@ impl ModelPackage {
     }
 
     /// Affordance in [0, 1] per pixel: batch x H x W.
-    pub fn position(&self, observation: ArrayView4<f32>) -> Result<Array3<f32>> {
+    pub fn position(&self, observation: ArrayView4<'_, f32>) -> Result<Array3<f32>> {
         self.check_obs("observation", &observation)?;
         self.with_sessions(|s| {
             let file = self.dir.join(&self.meta.files.position);
@@ -327,9 +327,9 @@ impl ModelPackage {
     /// Image embeddings at the grasp pixels: (dist, aot), each batch x E.
     pub fn encode(
         &self,
-        observation: ArrayView4<f32>,
-        reference: ArrayView4<f32>,
-        pixel: ArrayView2<i64>,
+        observation: ArrayView4<'_, f32>,
+        reference: ArrayView4<'_, f32>,
+        pixel: ArrayView2<'_, i64>,
     ) -> Result<(Array2<f32>, Array2<f32>)> {
         self.check_obs("observation", &observation)?;
         self.check_obs("reference", &reference)?;
@@ -370,9 +370,9 @@ impl ModelPackage {
     /// Scores candidates: rows of the embeddings pair with rows of `direction`.
     pub fn decode(
         &self,
-        dist_embedding: ArrayView2<f32>,
-        aot_embedding: ArrayView2<f32>,
-        direction: ArrayView2<f32>,
+        dist_embedding: ArrayView2<'_, f32>,
+        aot_embedding: ArrayView2<'_, f32>,
+        direction: ArrayView2<'_, f32>,
     ) -> Result<DirectionScores> {
         if self.branches == Branches::Inverse {
             return Err(PolicyError::Input(format!(
@@ -477,8 +477,8 @@ impl ModelPackage {
     /// The Inverse baseline: one unit direction per row of the embeddings.
     pub fn predict_direction(
         &self,
-        dist_embedding: ArrayView2<f32>,
-        aot_embedding: ArrayView2<f32>,
+        dist_embedding: ArrayView2<'_, f32>,
+        aot_embedding: ArrayView2<'_, f32>,
     ) -> Result<Array2<f32>> {
         if self.branches != Branches::Inverse {
             return Err(PolicyError::Input(format!(

@@ -66,7 +66,10 @@ impl Parts {
 
     /// A moving part: boxes given in the object frame (joint value 0), hinged or
     /// sliding at `joint_origin` (object frame) about/along `axis`.
-    #[allow(clippy::too_many_arguments)]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "a part's geometry, joint and limits: the recipes name each at the call"
+    )]
     pub fn part(
         &mut self,
         parent: usize,

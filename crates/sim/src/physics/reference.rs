@@ -460,8 +460,8 @@ impl Responses<'_> {
     fn of(&self, jacobian: &[f64; MAX_DOFS]) -> [f64; MAX_DOFS] {
         let n = self.n;
         let mut response = [0.0; MAX_DOFS];
-        for a in 0..n {
-            response[a] = (0..n).map(|b| self.inv_mass[a * n + b] * jacobian[b]).sum();
+        for (a, r) in response.iter_mut().enumerate().take(n) {
+            *r = (0..n).map(|b| self.inv_mass[a * n + b] * jacobian[b]).sum();
         }
         for i in 0..3 {
             response[n + i] = jacobian[n + i] / self.mount_mass;

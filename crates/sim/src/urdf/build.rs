@@ -26,7 +26,7 @@ fn geometry_mesh(
     base_dir: &Path,
     file: &Path,
     link: &str,
-    meshes: MeshSource,
+    meshes: MeshSource<'_>,
 ) -> Result<TriMesh> {
     Ok(match g {
         urdf_rs::Geometry::Box { size } => TriMesh::cuboid(Vec3::from(size.0.map(|v| v as f32))),
@@ -136,12 +136,16 @@ fn material_color(m: &Option<urdf_rs::Material>, named: &HashMap<String, [f32; 3
     }
 }
 
+#[expect(
+    clippy::too_many_lines,
+    reason = "one pass from parsed URDF to model, in file order; the next to split, by element"
+)]
 pub(super) fn build_model(
     robot: urdf_rs::Robot,
     path: &Path,
     with_inertial: &HashSet<String>,
     joint_lines: &HashMap<String, u32>,
-    meshes: MeshSource,
+    meshes: MeshSource<'_>,
 ) -> Result<ObjectModel> {
     let base_dir = path.parent().unwrap_or(Path::new("."));
     if robot.links.is_empty() {

@@ -9,6 +9,10 @@ use std::path::Path;
 /// file and infinite after conversion. Sizes, inertias and colours must also
 /// be in range: a negative inertia freezes a joint, a negative size or scale
 /// turns a mesh inside out.
+#[expect(
+    clippy::too_many_lines,
+    reason = "a flat list of checks, one per URDF field, each naming its element"
+)]
 pub(super) fn check_numbers(robot: &urdf_rs::Robot, path: &Path) -> Result<()> {
     let finite = |v: f64| (v as f32).is_finite();
     let bad = |what: String, values: &[f64]| -> Result<()> {

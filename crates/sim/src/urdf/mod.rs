@@ -79,7 +79,11 @@ pub fn parse_urdf(text: &str, path: &Path) -> Result<ObjectModel> {
 pub type MeshSource<'a> = &'a dyn Fn(&Path) -> Option<TriMesh>;
 
 /// As [`parse_urdf`], with meshes looked up in `meshes` first.
-pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<ObjectModel> {
+#[expect(
+    clippy::too_many_lines,
+    reason = "the loader's stages in order (size, XML, mending, checks, build), each a call"
+)]
+pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource<'_>) -> Result<ObjectModel> {
     if text.len() as u64 > MAX_URDF_BYTES {
         return Err(urdf_err(
             path,
@@ -112,7 +116,7 @@ pub fn parse_urdf_with(text: &str, path: &Path, meshes: MeshSource) -> Result<Ob
             ),
         ));
     }
-    let line_of = |n: roxmltree::Node| doc.text_pos_at(n.range().start).row;
+    let line_of = |n: roxmltree::Node<'_, '_>| doc.text_pos_at(n.range().start).row;
     // urdf-rs answers a <geometry> without a shape with a two-line reader dump.
     const SHAPES: &[&str] = &["box", "cylinder", "capsule", "sphere", "mesh"];
     for g in root.descendants().filter(|n| n.has_tag_name("geometry")) {
@@ -205,11 +209,11 @@ pub(crate) fn quoted(value: &str) -> String {
 /// that is no finite number, a cycle) and otherwise what to do instead:
 /// ignoring it would let a part move that the file says must follow another.
 fn check_mimics(
-    root: roxmltree::Node,
+    root: roxmltree::Node<'_, '_>,
     path: &Path,
-    line_of: &dyn Fn(roxmltree::Node) -> u32,
+    line_of: &dyn Fn(roxmltree::Node<'_, '_>) -> u32,
 ) -> Result<()> {
-    let joints: Vec<roxmltree::Node> = root
+    let joints: Vec<roxmltree::Node<'_, '_>> = root
         .children()
         .filter(|n| n.has_tag_name("joint"))
         .collect();

@@ -82,9 +82,9 @@ pub(super) fn check_xml_shape(text: &str, path: &Path) -> Result<()> {
 /// Writes the element back out as XML, fixing what PartNet-Mobility files get
 /// wrong: `<limit>` without velocity/effort and stray characters in numbers.
 pub(super) fn mend(
-    node: roxmltree::Node,
+    node: roxmltree::Node<'_, '_>,
     path: &Path,
-    line_of: &dyn Fn(roxmltree::Node) -> u32,
+    line_of: &dyn Fn(roxmltree::Node<'_, '_>) -> u32,
     out: &mut String,
 ) -> Result<()> {
     let name = node.tag_name().name();
