@@ -5,6 +5,7 @@ import json
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -872,3 +873,82 @@ def test_scale_and_pose_place_an_object_file_as_pybullet_load_urdf_would(tmp_pat
     ]:
         p = run("render", "--out", str(tmp_path / "bad"), *bad, check=False)
         assert p.returncode == 2 and says in p.stderr, (bad, p.stderr)
+
+
+def make_partnet_folder(root, tmp_path):
+    """A small folder in both PartNet layouts, built from generated objects:
+    UMPNet's mobility_dataset (<Category>/<id>/) for Microwave and
+    PartNet-Mobility's own (<id>/ with meta.json) for Door, with the released
+    split's file format."""
+    gen = tmp_path / "gen"
+    run("objects", "generate", "--out", str(gen), "--per-category", "4", "--categories", "Microwave,Door")
+    for k, id_ in enumerate(["101", "102", "103"]):
+        shutil.copytree(gen / "Microwave" / str(k), root / "Microwave" / id_)
+    for k, id_ in enumerate(["8867", "8868"]):
+        shutil.copytree(gen / "Door" / str(k), root / id_)
+        (root / id_ / "meta.json").write_text(json.dumps({"model_cat": "Door", "anno_id": id_}))
+    split = {
+        "train": {"Microwave": {"train": ["101"], "test": ["102", 103]}},
+        "test": {"Door": {"test": ["8867", "8868"]}},
+    }
+    (root / "split-full.json").write_text(json.dumps(split))
+
+
+def test_partnet_folder_with_the_released_split_scores_the_held_out_instances(tmp_path):
+    """`eval --partnet DIR` scores each category on the folder's instances
+    the released split names (a training category's held-out ones, a test
+    category's all), records them in results.json, and names what is wrong
+    with a folder."""
+    root = tmp_path / "mobility_dataset"
+    make_partnet_folder(root, tmp_path)
+    out = tmp_path / "eval"
+    run(
+        "eval",
+        "--task",
+        "exploration",
+        "--partnet",
+        str(root),
+        "--episodes-per-category",
+        "6",
+        "--policies",
+        "random",
+        "--out",
+        str(out),
+    )
+    summary = json.loads((out / "results.json").read_text())["summary"]
+    assert summary["categories"] == ["Microwave", "Door"], summary["categories"]
+    names = [i["name"] for i in summary["partnet"]["instances"]]
+    assert names == ["Microwave/102", "Microwave/103", "Door/8867", "Door/8868"], names
+    assert "split-full.json sha256:" in summary["partnet"]["split_file"]
+    used = {}
+    for line in (out / "episodes.jsonl").read_text().splitlines():
+        o = json.loads(line)
+        used.setdefault(o["category"], set()).add(Path(o["episode"]["scene"]["object"]["path"]).parent.name)
+    # The trained-on instance 101 is never scored; each listed one is.
+    assert used == {"Microwave": {"102", "103"}, "Door": {"8867", "8868"}}, used
+    # Without the split file: every instance found, in both layouts.
+    (root / "split-full.json").rename(tmp_path / "split.json")
+    found = json.loads(
+        run(
+            "--json",
+            "eval",
+            "--task",
+            "goal",
+            "--partnet",
+            str(root),
+            "--episodes-per-category",
+            "3",
+            "--policies",
+            "random",
+        ).stdout
+    )
+    assert "split_file" not in found["partnet"] and len(found["partnet"]["instances"]) == 5
+    # What is wrong is named.
+    p = run("eval", "--partnet", str(root), "--categories", "Oven", "--policies", "random", check=False)
+    assert p.returncode == 2 and "no instances of Oven" in p.stderr, p.stderr
+    (root / "Microwave" / "103" / "object_meta_info.json").unlink()
+    p = run("eval", "--partnet", str(root), "--split-file", str(tmp_path / "split.json"), check=False)
+    assert p.returncode == 2 and "Microwave 103" in p.stderr and "object_meta_info.json" in p.stderr, p.stderr
+    (tmp_path / "typo.json").write_text(json.dumps({"train": {"Microwav": {"test": ["102"]}}}))
+    p = run("eval", "--partnet", str(root), "--split-file", str(tmp_path / "typo.json"), check=False)
+    assert p.returncode == 2 and "Microwav" in p.stderr and "did you mean Microwave" in p.stderr, p.stderr

@@ -49,6 +49,18 @@ fn mix(parts: &[u64]) -> u64 {
 pub enum Row {
     Category(Category),
     Object(ObjectRow),
+    /// A category's row on object files instead of generated instances
+    /// (`eval --partnet`: a local PartNet-Mobility folder).
+    Instances(InstanceRow),
+}
+
+/// A category scored on given object files: scene `k` uses instance
+/// `k % n`, with the category's scene seeds, so it pairs with the generated
+/// category's row scene by scene.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct InstanceRow {
+    pub category: Category,
+    pub instances: Vec<crate::partnet::Instance>,
 }
 
 /// An object file scored as its own row, named after its folder.
@@ -63,6 +75,7 @@ impl Row {
         match self {
             Row::Category(c) => c.name(),
             Row::Object(o) => &o.name,
+            Row::Instances(r) => r.category.name(),
         }
     }
 
@@ -70,6 +83,7 @@ impl Row {
         match self {
             Row::Category(c) => Some(*c),
             Row::Object(_) => None,
+            Row::Instances(r) => Some(r.category),
         }
     }
 }
@@ -118,6 +132,7 @@ fn name_hash(name: &str) -> u64 {
 pub fn row_seed(seed: u64, task: Task, row: &Row, k: u32) -> u64 {
     match row {
         Row::Category(c) => scene_seed(seed, task, *c, k),
+        Row::Instances(r) => scene_seed(seed, task, r.category, k),
         Row::Object(o) => mix(&[seed, task as u64, u64::MAX, name_hash(&o.name), k as u64]),
     }
 }
@@ -141,6 +156,21 @@ pub fn row_scene(
             ObjectSource::file(o.urdf.clone()),
             physics,
         ),
+        Row::Instances(r) => {
+            let instance = r
+                .instances
+                .get(k as usize % r.instances.len().max(1))
+                .ok_or_else(|| {
+                    EvalError::Episode(format!("{}: no instances", r.category.name()))
+                })?;
+            sample_visible_scene(
+                &mut ChaCha8Rng::seed_from_u64(row_seed(seed, task, row, k)),
+                task,
+                Some(r.category),
+                ObjectSource::file(instance.urdf.clone()),
+                physics,
+            )
+        }
     }
 }
 
@@ -447,7 +477,7 @@ fn run_scene(
                 category: row.category(),
                 object: match row {
                     Row::Object(o) => Some(o.name.clone()),
-                    Row::Category(_) => None,
+                    Row::Category(_) | Row::Instances(_) => None,
                 },
                 index: k,
                 policy: name.clone(),

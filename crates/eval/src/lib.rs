@@ -3,6 +3,7 @@
 pub mod benchmark;
 pub mod episode;
 pub mod learned;
+pub mod partnet;
 pub mod policy;
 pub mod protocol;
 pub mod rewards;

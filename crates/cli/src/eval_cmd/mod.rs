@@ -8,7 +8,7 @@ mod tables;
 
 use crate::{Ctx, usage};
 use anyhow::{Context, Result};
-use report::{Aggregate, ObjectInfo, Report, RunInfo, Scored};
+use report::{Aggregate, ObjectInfo, PartnetInfo, Report, RunInfo, Scored};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -58,6 +58,17 @@ pub struct EvalArgs {
     /// writes this layout from MJCF files.
     #[arg(long, value_name = "DIR")]
     pub objects: Option<PathBuf>,
+    /// Score the categories on a local PartNet-Mobility folder instead of the
+    /// generated objects: UMPNet's mobility_dataset (<Category>/<id>/) or
+    /// PartNet's own layout (<id>/ with meta.json), each object with its
+    /// object_meta_info.json. Instances come from --split-file.
+    #[arg(long, value_name = "DIR")]
+    pub partnet: Option<PathBuf>,
+    /// The released split (split-full.json; default: DIR/split-full.json when
+    /// present, else every instance found): a training category's held-out
+    /// instances, every instance of a test category.
+    #[arg(long, value_name = "FILE", requires = "partnet")]
+    pub split_file: Option<PathBuf>,
     /// Scenes per row (category or object); every policy runs each scene.
     #[arg(long, default_value_t = 100)]
     pub episodes_per_category: u32,
@@ -204,6 +215,84 @@ fn folder_digest(dir: &Path) -> Result<String> {
     Ok(format!("sha256:{:x}", h.finalize()))
 }
 
+/// The categories' rows on a PartNet-Mobility folder's instances, the
+/// categories that have some, and what the run used (for results.json). A
+/// category listed by --categories must have instances; one chosen by
+/// --split without any is left out, with a notice.
+fn partnet_rows(
+    dir: &Path,
+    split_file: Option<&Path>,
+    categories: &[Category],
+    listed: bool,
+) -> Result<(Vec<Category>, Vec<Row>, Option<PartnetInfo>)> {
+    let found =
+        umpnet_eval::partnet::read_instances(dir, split_file).map_err(|e| usage(e.to_string()))?;
+    let missing: Vec<&str> = categories
+        .iter()
+        .filter(|c| !found.contains_key(c))
+        .map(|c| c.name())
+        .collect();
+    if !missing.is_empty() {
+        let what = format!(
+            "--partnet {}: no instances of {}",
+            dir.display(),
+            missing.join(", ")
+        );
+        if listed {
+            return Err(usage(what));
+        }
+        eprintln!("notice: {what}; their rows are left out");
+    }
+    let mut kept = Vec::new();
+    let mut rows = Vec::new();
+    let mut instances = Vec::new();
+    for c in categories {
+        let Some(list) = found.get(c) else { continue };
+        for i in list {
+            let folder = i.urdf.parent().unwrap_or(Path::new("."));
+            instances.push(ObjectInfo {
+                name: format!("{}/{}", c.name(), i.id),
+                urdf: i.urdf.to_string_lossy().into_owned(),
+                sha256: folder_digest(folder)?,
+            });
+        }
+        kept.push(*c);
+        rows.push(Row::Instances(umpnet_eval::benchmark::InstanceRow {
+            category: *c,
+            instances: list.clone(),
+        }));
+    }
+    if kept.is_empty() {
+        return Err(usage(format!(
+            "--partnet {}: none of the chosen categories has instances",
+            dir.display()
+        )));
+    }
+    let split = split_file.map(Path::to_path_buf).or_else(|| {
+        let default = dir.join("split-full.json");
+        default.is_file().then_some(default)
+    });
+    Ok((
+        kept,
+        rows,
+        Some(PartnetInfo {
+            dir: dir.to_string_lossy().into_owned(),
+            split_file: split
+                .map(|f| -> Result<String> {
+                    let bytes =
+                        std::fs::read(&f).with_context(|| format!("reading {}", f.display()))?;
+                    Ok(format!(
+                        "{} sha256:{:x}",
+                        f.display(),
+                        Sha256::digest(&bytes)
+                    ))
+                })
+                .transpose()?,
+            instances,
+        }),
+    ))
+}
+
 #[expect(
     clippy::too_many_lines,
     reason = "the eval command's setup, run and report in order; the next to split"
@@ -259,11 +348,19 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
             });
         }
     }
-    let rows: Vec<Row> = categories
-        .iter()
-        .map(|c| Row::Category(*c))
-        .chain(object_rows)
-        .collect();
+    let (categories, category_rows, partnet) = match &a.partnet {
+        Some(dir) => partnet_rows(
+            dir,
+            a.split_file.as_deref(),
+            &categories,
+            !a.categories.is_empty(),
+        )?,
+        None => {
+            let rows = categories.iter().map(|c| Row::Category(*c)).collect();
+            (categories, rows, None)
+        }
+    };
+    let rows: Vec<Row> = category_rows.into_iter().chain(object_rows).collect();
     let threads = a
         .threads
         .map_or_else(rayon::current_num_threads, usize::from)
@@ -336,6 +433,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         models,
         categories,
         objects,
+        partnet,
         direction_filter: a.direction_filter.map(|f| f.name().to_owned()),
         sampler: a
             .sampler

@@ -40,6 +40,9 @@ pub struct RunInfo {
     /// Object files scored as rows (`eval --objects`), after the categories.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub objects: Vec<ObjectInfo>,
+    /// `eval --partnet`: the categories' instances came from this folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub partnet: Option<PartnetInfo>,
     /// `--direction-filter`: the filter every learned policy ran under, when
     /// not its package's own.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -48,6 +51,17 @@ pub struct RunInfo {
     /// candidates (`cem 32`, `uniform 64`), when not the paper's CEM with 64.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<String>,
+}
+
+/// The PartNet-Mobility folder a run's categories were scored on: the
+/// folder, the split file and its SHA-256, and each instance (`Category/id`)
+/// with its folder's SHA-256.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PartnetInfo {
+    pub dir: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub split_file: Option<String>,
+    pub instances: Vec<ObjectInfo>,
 }
 
 /// One object row: its name, its file and the SHA-256 of its folder (shards
