@@ -568,3 +568,52 @@ def test_a_bad_preset_or_learner_is_a_usage_error_not_a_traceback(capsys):
         assert e.value.code == 2
     err = capsys.readouterr().err
     assert "unknown preset 'tiny'" in err and "--learner: invalid choice: 'fp16'" in err, err
+
+
+def test_the_paper_direction_net_is_the_papers_and_exports_the_same_contract(tmp_path):
+    """`--direction-net paper` (the paper preset's): seven conv stages to a
+    flattened 512 x 7 x 10 map at 480 x 640, 256 features per branch, an action
+    MLP of 128 per branch and 1024-1024-1024 decoders; whole-image features, so
+    the grasp pixel changes nothing and the AoT branch alone reads the
+    reference. A smoke run of it exports a package the Rust runtime scores."""
+    import torch
+    from torch import nn
+    from umpnet_train.models import UMPNet
+
+    paper = UMPNet(make_config("paper"))
+    tower = paper.encoder.aot
+    assert len(tower.stages) == 7 and tower.features[0].in_features == 512 * 7 * 10
+    assert tower.features[-1].out_features == 256 and tower.stages[0][0].in_channels == 20
+    assert paper.encoder.dist.stages[0][0].in_channels == 10
+    hidden = [m.out_features for m in paper.decoder.dist_head if isinstance(m, nn.Linear)]
+    assert hidden == [1024, 1024, 1024, 1] and paper.decoder.aot_head[-1].out_features == 3
+    assert [m.out_features for m in paper.decoder.aot_action if isinstance(m, nn.Linear)] == [128, 128, 128]
+    del paper
+
+    model = UMPNet(make_config("cpu-small", direction_net="paper")).eval()
+    torch.manual_seed(0)
+    obs, ref = torch.randn(1, 96, 128, 10), torch.randn(1, 96, 128, 10)
+    with torch.no_grad():
+        a = model.encoder(obs, ref, torch.tensor([[0, 0]]))
+        b = model.encoder(obs, ref, torch.tensor([[50, 70]]))
+        c = model.encoder(obs, obs, torch.tensor([[0, 0]]))
+    assert torch.equal(a[0], b[0]) and torch.equal(a[1], b[1])
+    assert torch.equal(a[0], c[0]) and not torch.allclose(a[1], c[1])
+    with pytest.raises(ValueError, match="below one pixel"):
+        make_config("smoke", direction_net="paper")
+
+    pkg = tmp_path / "package"
+    args = ["--preset", "smoke", "--epochs", "1", "--direction-net", "paper", "--paper-widths", "8,16,32,64",
+            "--out", str(tmp_path / "run"), "--export", str(pkg)]  # fmt: skip
+    assert train.main(args) == 0
+    meta = json.loads((pkg / "model.json").read_text())
+    assert meta["config"]["direction_net"] == "paper" and meta["export_check"]["max_abs_diff_onnx_vs_torch"] < 1e-3
+    pol = umpnet.Policy(str(pkg))
+    h, w = pol.resolution
+    img = np.random.default_rng(0).normal(size=(2, h, w, 10)).astype(np.float32)
+    out = pol.direction_batch(img, img, np.array([[1, 2], [3, 4]]), mode="explore")
+    assert len(out) == 2 and all(len(o["distance"]) >= 64 for o in out)
+    # The decoder reads the candidate direction (one that did not would rank nothing).
+    with torch.no_grad():
+        dist, logits = model.decoder(a[0].expand(2, -1), a[1].expand(2, -1), torch.eye(3)[:2])
+    assert not torch.allclose(dist[0], dist[1]) and not torch.allclose(logits[0], logits[1])

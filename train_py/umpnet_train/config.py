@@ -31,9 +31,14 @@ class Config:
     action_embedding: int = option(32, "width of the encoded candidate direction")
     direction_net: str = option(
         "context",
-        "context: difference channels, global context and bilinear heads (models.py); "
-        "plain: the direction network of the packages shipped before it",
-        choices=("context", "plain"),
+        "paper: the paper's DirectionNet (whole-image conv towers, 1024-wide decoders; the paper "
+        "preset's); context: a U-Net embedding at the grasp pixel with difference channels, global "
+        "context and bilinear heads (models.py); plain: the network of the packages shipped before it",
+        choices=("context", "plain", "paper"),
+    )
+    paper_widths: tuple[int, ...] = option(
+        (32, 64, 128, 256, 512, 512, 512),
+        "the paper DirectionNet's stages: full resolution, then one halving per further width",
     )
     decoder_hidden: int = option(1024, "width of the decoder MLPs (the paper's appendix)")
     variant: str = option("umpnet", "the method: UMPNet or one of the paper's baselines", choices=VARIANTS)
@@ -126,7 +131,9 @@ class Config:
 
 
 PRESETS = {
-    "paper": {},
+    # The paper's networks: DirectionNet features of 256, action encoders of
+    # 128 (its released model.py).
+    "paper": {"direction_net": "paper", "embedding": 256, "action_embedding": 128},
     "cpu-small": {
         "height": 96,
         "width": 128,
@@ -189,6 +196,17 @@ def make_config(preset: str = "paper", **overrides) -> Config:
         if choices and f.name in values and values[f.name] not in choices:
             expected = ", ".join(repr(c) for c in choices)
             raise ValueError(f"{f.name} {values[f.name]!r}: expected one of {expected}")
+    cfg_net = values.get("direction_net", "context")
+    if cfg_net == "paper":
+        widths = values.get("paper_widths", (32, 64, 128, 256, 512, 512, 512))
+        h, w = values.get("height", 480), values.get("width", 640)
+        if not widths or (h >> (len(widths) - 1)) < 1 or (w >> (len(widths) - 1)) < 1:
+            raise ValueError(
+                f"paper_widths {tuple(widths)}: {len(widths)} stages halve a {h}x{w} image below one pixel; "
+                "give fewer widths (e.g. 8,16,32,64)"
+            )
+        if values.get("aux_fields", 0.0) > 0:
+            raise ValueError("aux_fields: the paper's DirectionNet has no per-pixel embedding to supervise")
     if values.get("dense_labels", 0) < 0:
         raise ValueError(f"dense_labels {values['dense_labels']}: expected 0 (off) or a positive count")
     return Config(**values)

@@ -1,5 +1,7 @@
 """The networks: PositionNet (per-pixel affordance) and DirectionNet (Dist and
-AoT branches over an image encoder and an action decoder), as in the paper.
+AoT branches over an image encoder and an action decoder). `direction_net
+"paper"` is the paper's DirectionNet; the default, "context", reads a U-Net's
+embedding at the grasp pixel (see DirectionEncoder).
 
 Observations enter as N x H x W x 10 (the Rust layout) and are normalised
 inside the networks, so exported ONNX graphs take raw observations.
@@ -126,6 +128,43 @@ class Difference(nn.Module):
         return d / self.scale
 
 
+def mlp(cin: int, hidden: tuple[int, ...], cout: int) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for h in hidden:
+        layers += [nn.Linear(cin, h), nn.ReLU(inplace=True)]
+        cin = h
+    return nn.Sequential(*layers, nn.Linear(cin, cout))
+
+
+class ConvTower(nn.Module):
+    """The paper's DirectionNet image encoder (its released model.py): a
+    double convolution at full resolution, then one max-pool and double
+    convolution per further width, flattened (the paper's 512 x 7 x 10 at
+    480 x 640) into an MLP to `embedding` features. It sees the whole image,
+    gripper included, not a grasp pixel."""
+
+    def __init__(self, cin: int, widths: tuple[int, ...], embedding: int, height: int, width: int):
+        super().__init__()
+        stages: list[nn.Module] = [block(cin, widths[0])]
+        for a, b in itertools.pairwise(widths):
+            stages.append(nn.Sequential(nn.MaxPool2d(2), block(a, b)))
+        self.stages = nn.Sequential(*stages)
+        h, w = height >> (len(widths) - 1), width >> (len(widths) - 1)
+        if h < 1 or w < 1:
+            raise ValueError(
+                f"paper_widths: {len(widths)} stages halve a {height}x{width} image below one pixel; give fewer widths"
+            )
+        self.features = mlp(widths[-1] * h * w, (embedding,), embedding)
+        # He-normal convolutions, as the released code initialises them: with
+        # PyTorch's default, seven stages shrink the signal ~10x each at init.
+        for m in self.stages.modules():
+            if isinstance(m, nn.Conv2d):
+                nn.init.kaiming_normal_(m.weight)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.features(self.stages(x).flatten(1))
+
+
 class DirectionEncoder(nn.Module):
     """Image embeddings at the grasp pixel for the Dist branch (current
     observation) and the AoT branch (current + reference observation).
@@ -133,14 +172,19 @@ class DirectionEncoder(nn.Module):
     direction_net "context" (the default) also gives the AoT branch the
     current-minus-reference difference as explicit channels and both branches a
     global context vector; "plain" is the network of the models shipped before
-    it (kept so their checkpoints still load)."""
+    it (kept so their checkpoints still load); "paper" is the paper's
+    (`ConvTower`): whole-image features, the same at every pixel."""
 
     def __init__(
         self, widths: tuple[int, ...], embedding: int, use_reference: bool = True, net: str = "context",
-        fields: bool = False,
+        fields: bool = False, image_size: tuple[int, int] = (96, 128),
+        paper_widths: tuple[int, ...] = (32, 64, 128, 256, 512, 512, 512),
     ):  # fmt: skip
         super().__init__()
         self.use_reference = use_reference
+        self.paper = net == "paper"
+        if self.paper and fields:
+            raise ValueError("--aux-fields reads a per-pixel embedding, which the paper's DirectionNet has not")
         # Auxiliary: the flow read linearly from the Dist branch's per-pixel
         # embedding, so the embedding the decoders see encodes how the part moves.
         self.flow_head = nn.Conv2d(embedding, 3, 1) if fields else None
@@ -148,9 +192,13 @@ class DirectionEncoder(nn.Module):
         context = net == "context"
         self.norm1 = Normalize()
         self.norm2 = Normalize(2 if use_reference else 1)
-        self.dist = UNet(CHANNELS, widths, embedding, context)
         aot_in = CHANNELS * (2 if use_reference else 1) + (0 if self.difference is None else DIFF_CHANNELS)
-        self.aot = UNet(aot_in, widths, embedding, context)
+        if self.paper:
+            self.dist = ConvTower(CHANNELS, paper_widths, embedding, *image_size)
+            self.aot = ConvTower(aot_in, paper_widths, embedding, *image_size)
+        else:
+            self.dist = UNet(CHANNELS, widths, embedding, context)
+            self.aot = UNet(aot_in, widths, embedding, context)
 
     def maps(self, observation, reference):
         """Per-pixel embeddings (N x E x H x W) of the Dist and AoT branches."""
@@ -167,6 +215,11 @@ class DirectionEncoder(nn.Module):
 
     def forward(self, observation, reference, pixel):
         dist_map, aot_map = self.maps(observation, reference)
+        if self.paper:
+            # Whole-image features; the pixel stays an input of the exported
+            # graph (the package contract), contributing nothing.
+            unused = 0.0 * pixel.sum().to(dist_map.dtype)
+            return dist_map + unused, aot_map + unused
         return features_at(dist_map, pixel), features_at(aot_map, pixel)
 
     def forward_fields(self, observation, reference, pixel):
@@ -189,11 +242,13 @@ class DirectionDecoder(nn.Module):
         # go along or against the part's displacement" is exactly one.
         self.bilinear_dist = nn.Linear(embedding, 3) if net == "context" else None
         self.bilinear_aot = nn.Linear(embedding, 3 * 3) if net == "context" else None
-        self.action = nn.Sequential(
-            nn.Linear(3, action_embedding), nn.ReLU(), nn.Linear(action_embedding, action_embedding)
-        )
-        self.dist_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 1))
-        self.aot_head = nn.Sequential(nn.Linear(embedding + action_embedding, hidden), nn.ReLU(), nn.Linear(hidden, 3))
+        # The paper's: an action MLP per branch (3 -> 128 -> 128 -> 128) and
+        # 1024-1024-1024 decoders; the others share one action encoder.
+        layers = 3 if net == "paper" else 1
+        self.action = mlp(3, (action_embedding,) * (layers - 1 or 1), action_embedding)
+        self.aot_action = mlp(3, (action_embedding,) * (layers - 1), action_embedding) if net == "paper" else None
+        self.dist_head = mlp(embedding + action_embedding, (hidden,) * layers, 1)
+        self.aot_head = mlp(embedding + action_embedding, (hidden,) * layers, 3)
         if variant == "inverse":
             self.inverse_head = nn.Sequential(nn.Linear(2 * embedding, hidden), nn.ReLU(), nn.Linear(hidden, 3))
 
@@ -201,8 +256,9 @@ class DirectionDecoder(nn.Module):
         """Returns (distance N, aot_logits N x 3); for signed-dist the distance is
         signed, for where2act it is the logit of "this action moves the object"."""
         a = self.action(direction)
+        b = a if self.aot_action is None else self.aot_action(direction)
         distance = self.dist_head(torch.cat([dist_embedding, a], dim=1)).squeeze(1)
-        aot_logits = self.aot_head(torch.cat([aot_embedding, a], dim=1))
+        aot_logits = self.aot_head(torch.cat([aot_embedding, b], dim=1))
         if self.bilinear_dist is not None:
             distance = distance + (self.bilinear_dist(dist_embedding) * direction).sum(dim=1)
             bil = self.bilinear_aot(aot_embedding).view(-1, 3, 3)
@@ -226,8 +282,9 @@ class UMPNet(nn.Module):
         fields = getattr(cfg, "aux_fields", 0.0) > 0
         self.position = PositionNet(tuple(cfg.position_widths), fields)
         self.encoder = DirectionEncoder(
-            tuple(cfg.direction_widths), cfg.embedding, uses_reference(cfg.variant), cfg.direction_net, fields
-        )
+            tuple(cfg.direction_widths), cfg.embedding, uses_reference(cfg.variant), cfg.direction_net, fields,
+            (cfg.height, cfg.width), tuple(getattr(cfg, "paper_widths", (32, 64, 128, 256, 512, 512, 512))),
+        )  # fmt: skip
         self.decoder = DirectionDecoder(
             cfg.embedding, cfg.action_embedding, cfg.variant, cfg.direction_net, cfg.decoder_hidden
         )
