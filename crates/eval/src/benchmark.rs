@@ -137,6 +137,11 @@ pub fn row_seed(seed: u64, task: Task, row: &Row, k: u32) -> u64 {
     }
 }
 
+/// The seed of the policy's own random choices on scene `k` of a row.
+pub fn policy_seed(seed: u64, task: Task, row: &Row, k: u32) -> u64 {
+    row_seed(seed ^ 0x5EED, task, row, k)
+}
+
 /// Scene `k` of a row: for a category, [`benchmark_scene`]; for an object,
 /// its file placed and posed by the protocol, a goal on a joint the camera sees.
 pub fn row_scene(
@@ -506,7 +511,7 @@ pub fn run_one(
         .unwrap_or_else(|| cfg.protocol.budget(cfg.task, row.category()));
     let mut policy = make()?;
     let renderer = create_renderer(cfg.renderer)?;
-    let seed = row_seed(cfg.seed ^ 0x5EED, cfg.task, row, k);
+    let seed = policy_seed(cfg.seed, cfg.task, row, k);
     run_episode(
         &scene,
         cfg.policy_cameras.get(name).unwrap_or(&cfg.camera),

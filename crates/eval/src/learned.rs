@@ -9,6 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use std::path::Path;
 use std::sync::Arc;
 use umpnet_policy::cem::Mode;
+use umpnet_policy::memory::EpisodeMemory;
 use umpnet_policy::policy::DirectionFilter;
 use umpnet_policy::{CameraFrame, DecisionInput, ModelPackage, UmpnetPolicy, build_observation};
 use umpnet_sim::env::SimEnv;
@@ -54,7 +55,7 @@ pub struct LearnedPolicy {
     name: String,
     policy: UmpnetPolicy,
     rng: ChaCha8Rng,
-    banned: Vec<Vector3<f32>>,
+    memory: EpisodeMemory,
     reference: Option<Array3<f32>>,
 }
 
@@ -64,7 +65,7 @@ impl LearnedPolicy {
             name: name.into(),
             policy: UmpnetPolicy::new(package),
             rng: ChaCha8Rng::seed_from_u64(0),
-            banned: Vec::new(),
+            memory: EpisodeMemory::default(),
             reference: None,
         }
     }
@@ -104,7 +105,7 @@ impl Policy for LearnedPolicy {
     }
     fn reset(&mut self, seed: u64) {
         self.rng = ChaCha8Rng::seed_from_u64(seed);
-        self.banned.clear();
+        self.memory.clear();
         self.reference = None;
     }
     fn position(&mut self, obs: &Observation<'_>, env: &SimEnv) -> Result<(u32, u32)> {
@@ -124,11 +125,8 @@ impl Policy for LearnedPolicy {
     ) -> Result<Decision> {
         self.check_resolution(obs.frame)?;
         if let Some(last) = history.last() {
-            if last.labels.moved {
-                self.banned.clear();
-            } else {
-                self.banned.push(Vector3::from(last.direction));
-            }
+            self.memory
+                .record(Vector3::from(last.direction), last.labels.moved);
         }
         let current = observation_tensor(obs.frame)?;
         let reference = match &self.reference {
@@ -148,8 +146,8 @@ impl Policy for LearnedPolicy {
             observation: current.view(),
             reference: reference.view(),
             pixel,
-            banned: &self.banned,
-            previous: history.last().map(|s| Vector3::from(s.direction)),
+            banned: self.memory.banned(),
+            previous: self.memory.previous(),
             mode,
         };
         let mut out = self.policy.directions(

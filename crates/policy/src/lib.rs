@@ -4,6 +4,7 @@
 pub mod axis;
 pub mod cem;
 pub mod error;
+pub mod memory;
 pub mod observation;
 
 pub use error::{PolicyError, Result};

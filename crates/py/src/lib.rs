@@ -6,24 +6,19 @@
     clippy::indexing_slicing,
     reason = "every index follows a shape check of the array it indexes, which raises ValueError otherwise"
 )]
-use arrays::{Arr2, Arr3, Arr4};
-use numpy::{PyReadonlyArray3, PyReadonlyArray4, PyUntypedArrayMethods};
+use arrays::Arr2;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use std::path::PathBuf;
-use std::sync::Arc;
 use umpnet_eval::EvalError;
 use umpnet_eval::train_env::{PositionInfo, ScriptedAction, TrainEnv};
-use umpnet_policy::cem::Mode;
-use umpnet_policy::{DecisionInput, ModelPackage, UmpnetPolicy};
 use umpnet_sim::env::StepLabels;
 use umpnet_sim::scene::{Scene, Task};
 
 /// Bounds on what a caller may ask for: far above any machine's use, far below
 /// what exhausts memory or threads.
 pub(crate) const MAX_ENVS: usize = 4096;
-const MAX_THREADS: usize = 1024;
+pub(crate) const MAX_THREADS: usize = 1024;
 
 fn runtime_err(e: impl std::fmt::Display) -> PyErr {
     PyRuntimeError::new_err(e.to_string())
@@ -31,7 +26,7 @@ fn runtime_err(e: impl std::fmt::Display) -> PyErr {
 
 /// A package or an input that is wrong is the caller's ValueError; a runtime
 /// that fails (ONNX Runtime missing or broken) is a RuntimeError.
-fn policy_err(e: umpnet_policy::PolicyError) -> PyErr {
+pub(crate) fn policy_err(e: umpnet_policy::PolicyError) -> PyErr {
     match e {
         umpnet_policy::PolicyError::Input(_) | umpnet_policy::PolicyError::Package { .. } => {
             PyValueError::new_err(e.to_string())
@@ -297,176 +292,12 @@ impl Env {
     }
 }
 
-/// The Rust policy runtime on a model package.
-#[pyclass(module = "umpnet", subclass, name = "Policy")]
-struct Policy {
-    inner: UmpnetPolicy,
-    rng: rand_chacha::ChaCha8Rng,
-}
-
-#[pymethods]
-impl Policy {
-    #[new]
-    #[pyo3(signature = (model_dir, seed=0, threads=1, onnxruntime=None))]
-    fn new(
-        model_dir: PathBuf,
-        seed: u64,
-        threads: usize,
-        onnxruntime: Option<PathBuf>,
-    ) -> PyResult<Self> {
-        use rand::SeedableRng;
-        if !(1..=MAX_THREADS).contains(&threads) {
-            return Err(PyValueError::new_err(format!(
-                "threads = {threads}: expected 1 to {MAX_THREADS}"
-            )));
-        }
-        let pkg = ModelPackage::load(&model_dir, 1, threads, onnxruntime.as_deref())
-            .map_err(policy_err)?;
-        Ok(Self {
-            inner: UmpnetPolicy::new(Arc::new(pkg)),
-            rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed),
-        })
-    }
-
-    /// (height, width) the model takes.
-    #[getter]
-    fn resolution(&self) -> (usize, usize) {
-        self.inner.resolution()
-    }
-
-    /// The grasp pixel (row, col) for an H x W x 10 observation (masked by a goal observation if given).
-    #[pyo3(signature = (image, goal=None))]
-    fn position(
-        &self,
-        image: Arr3<'_, f32>,
-        goal: Option<Arr3<'_, f32>>,
-    ) -> PyResult<(usize, usize)> {
-        let image = image.0;
-        let img = to_array3(&image)?;
-        let g = goal.as_ref().map(|g| to_array3(g)).transpose()?;
-        let c = self
-            .inner
-            .position(img.view(), g.as_ref().map(|g| g.view()))
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        Ok(c.pixel)
-    }
-
-    /// Directions for a batch: images/references B x H x W x 10, pixels B x 2.
-    /// Returns a list of dicts (direction or None to stop, candidates, distance, aot).
-    #[pyo3(signature = (images, references, pixels, mode="explore"))]
-    fn direction_batch<'py>(
-        &mut self,
-        py: Python<'py>,
-        images: Arr4<'py, f32>,
-        references: Arr4<'py, f32>,
-        pixels: Arr2<'py, i64>,
-        mode: &str,
-    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        let images = images.0;
-        let references = references.0;
-        let pixels = pixels.0;
-        use rand::SeedableRng;
-        let mode = match mode {
-            "explore" | "exploration" => Mode::Explore,
-            "goal" => Mode::Goal,
-            m => {
-                return Err(PyValueError::new_err(format!(
-                    "mode `{m}`: expected explore or goal"
-                )));
-            }
-        };
-        let b = images.shape()[0];
-        if references.shape() != images.shape() || pixels.shape() != [b, 2] {
-            return Err(PyValueError::new_err(format!(
-                "shapes: images {:?}, references {:?}, pixels {:?}; expected equal image shapes and pixels ({b}, 2)",
-                images.shape(),
-                references.shape(),
-                pixels.shape()
-            )));
-        }
-        let imgs: Vec<ndarray::Array3<f32>> = (0..b).map(|i| slice3(&images, i)).collect();
-        let refs: Vec<ndarray::Array3<f32>> = (0..b).map(|i| slice3(&references, i)).collect();
-        let px = pixels.as_array();
-        let (h, w) = (images.shape()[1], images.shape()[2]);
-        let mut grasp_pixels = Vec::with_capacity(b);
-        for i in 0..b {
-            let (row, col) = (px[[i, 0]], px[[i, 1]]);
-            match (usize::try_from(row), usize::try_from(col)) {
-                (Ok(r), Ok(c)) if r < h && c < w => grasp_pixels.push((r, c)),
-                _ => {
-                    return Err(PyValueError::new_err(format!(
-                        "pixels[{i}] = ({row}, {col}) is outside the {h} x {w} image: expected 0 <= row < {h} and 0 <= col < {w}"
-                    )));
-                }
-            }
-        }
-        let inputs: Vec<DecisionInput<'_>> = (0..b)
-            .map(|i| DecisionInput {
-                observation: imgs[i].view(),
-                reference: refs[i].view(),
-                pixel: grasp_pixels[i],
-                banned: &[],
-                previous: None,
-                mode,
-            })
-            .collect();
-        let mut rngs: Vec<rand_chacha::ChaCha8Rng> = (0..b)
-            .map(|i| {
-                rand_chacha::ChaCha8Rng::seed_from_u64(
-                    rand::Rng::random::<u64>(&mut self.rng) ^ i as u64,
-                )
-            })
-            .collect();
-        let inner = &self.inner;
-        let results = py
-            .detach(|| inner.directions(&inputs, &mut rngs))
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        results
-            .iter()
-            .map(|r| {
-                let d = PyDict::new(py);
-                d.set_item("direction", r.direction.map(|v| vec![v.x, v.y, v.z]))?;
-                d.set_item(
-                    "candidates",
-                    r.candidates
-                        .iter()
-                        .map(|v| vec![v.x, v.y, v.z])
-                        .collect::<Vec<_>>(),
-                )?;
-                d.set_item(
-                    "distance",
-                    r.scores.iter().map(|s| s.distance).collect::<Vec<_>>(),
-                )?;
-                d.set_item("aot", r.scores.iter().map(|s| s.aot).collect::<Vec<_>>())?;
-                Ok(d)
-            })
-            .collect()
-    }
-}
-
-fn to_array3(a: &PyReadonlyArray3<'_, f32>) -> PyResult<ndarray::Array3<f32>> {
-    let s = a.shape();
-    let v: Vec<f32> = a.as_array().iter().copied().collect();
-    ndarray::Array3::from_shape_vec((s[0], s[1], s[2]), v).map_err(runtime_err)
-}
-
-fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
-    let s = a.shape();
-    let v: Vec<f32> = a
-        .as_array()
-        .index_axis(numpy::ndarray::Axis(0), i)
-        .iter()
-        .copied()
-        .collect();
-    ndarray::Array3::from_shape_vec((s[1], s[2], s[3]), v)
-        .unwrap_or_else(|_| ndarray::Array3::zeros((s[1], s[2], s[3])))
-}
-
 mod arrays;
 mod buffers;
 mod config;
 mod fields;
 mod physics;
+mod policy;
 mod probe;
 mod vec_env;
 
@@ -481,6 +312,41 @@ fn categories() -> Vec<(&'static str, &'static str, usize)> {
             (c.name(), split, c.step_budget())
         })
         .collect()
+}
+
+/// The seeds `umpnet eval --seed SEED` gives scene `index` of a row (a
+/// category's name, or with `object=True` an `eval --objects` folder's
+/// name): (the scene's, the policy's). With the scene from its
+/// episodes.jsonl and `Policy.reset(policy_seed)`, `Policy.act` makes the
+/// benchmark's moves.
+#[pyfunction]
+#[pyo3(signature = (task, row, index, seed=0, object=false))]
+fn benchmark_seeds(
+    task: &str,
+    row: &str,
+    index: u32,
+    seed: u64,
+    object: bool,
+) -> PyResult<(u64, u64)> {
+    use umpnet_eval::benchmark::{ObjectRow, Row, policy_seed, row_seed};
+    let task: Task = task
+        .parse()
+        .map_err(|e: umpnet_sim::SimError| PyValueError::new_err(e.to_string()))?;
+    let row = if object {
+        Row::Object(ObjectRow {
+            name: row.to_owned(),
+            urdf: std::path::PathBuf::new(),
+        })
+    } else {
+        Row::Category(
+            row.parse::<umpnet_sim::objects::Category>()
+                .map_err(|e| PyValueError::new_err(e.to_string()))?,
+        )
+    };
+    Ok((
+        row_seed(seed, task, &row, index),
+        policy_seed(seed, task, &row, index),
+    ))
 }
 
 /// The reward, success and farthest distance of one direction step, by the
@@ -523,12 +389,13 @@ fn score_step(
 fn _umpnet(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(categories, m)?)?;
     m.add_function(wrap_pyfunction!(score_step, m)?)?;
+    m.add_function(wrap_pyfunction!(benchmark_seeds, m)?)?;
     m.add("DELTA", umpnet_sim::env::DELTA)?;
     m.add_class::<Env>()?;
     m.add_class::<config::EnvConfig>()?;
     m.add_class::<physics::Articulation>()?;
     m.add_class::<vec_env::VecEnv>()?;
-    m.add_class::<Policy>()?;
+    m.add_class::<policy::Policy>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

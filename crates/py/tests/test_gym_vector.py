@@ -1,6 +1,7 @@
 """The gymnasium VectorEnv over the Rust VecEnv: the same episodes, rewards,
 ends and observations as separate UmpnetEnvs, with next-step autoreset."""
 
+import json
 import os
 import subprocess
 from pathlib import Path
@@ -196,3 +197,47 @@ def test_documented_python_runs_as_written(doc, tmp_path, monkeypatch):
     monkeypatch.chdir(root)
     for block in blocks:
         exec(compile(block, f"{doc} (python block)", "exec"), {})  # noqa: S102  (the docs, run as written)
+
+
+@pytest.mark.parametrize("task", ["goal", "exploration"])
+def test_the_shipped_policy_through_gym_makes_the_moves_umpnet_eval_made(task, tmp_path):
+    """On the benchmark's scenes and seeds, the shipped policy driven through
+    gymnasium by Policy.act (with each step's info) makes exactly the moves
+    `umpnet eval` recorded and ends its episodes the same way."""
+    root = Path(__file__).resolve().parents[3]
+    binary = os.environ.get("UMPNET_BIN", str(root / "target/release/umpnet"))
+    out = tmp_path / "eval"
+    subprocess.run(
+        [binary, "eval", "--task", task, "--categories", "Door,Microwave,Switch", "--episodes-per-category", "3",
+         "--policies", "umpnet", "--model", str(root / "models/umpnet-small"), "--out", str(out)],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    episodes = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    episodes = [e for e in episodes if e["policy"] == "umpnet"]
+    assert len(episodes) == 9
+    policy = umpnet.Policy.default()
+    env = gym.make(f"umpnet/{'Goal' if task == 'goal' else 'Explore'}-v0", resolution=policy.resolution)
+    compared = 0
+    for e in episodes:
+        ep = e["episode"]
+        _, policy_seed = umpnet.benchmark_seeds(task, e["category"], e["index"])
+        policy.reset(policy_seed)
+        obs, info = env.reset(options={"scene": ep["scene"]})
+        action = policy.act(obs, task)
+        assert tuple(action["pixel"]) == tuple(ep["pixel"]), (e["category"], e["index"])
+        obs, _, terminated, truncated, info = env.step(action)
+        moves = []
+        while not (terminated or truncated):
+            action = policy.act(obs, task, info)
+            if policy.stopped:
+                assert ep["stopped_early"], (e["category"], e["index"])
+                break
+            moves.append(action["direction"])
+            obs, _, terminated, truncated, info = env.step(action)
+        recorded = [s["record"]["direction"] for s in ep["steps"]]
+        assert len(moves) == len(recorded), (e["category"], e["index"], len(moves), len(recorded))
+        assert np.allclose(moves, recorded, atol=1e-5) if recorded else True
+        if task == "goal":
+            assert bool(info["success"]) == ep["metrics"]["success"]
+        compared += len(recorded)
+    assert compared >= 9  # the episodes made moves, not only grasps

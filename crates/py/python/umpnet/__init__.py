@@ -22,7 +22,16 @@ import tempfile
 # is unsound once other threads run.
 os.environ.setdefault("XDG_RUNTIME_DIR", tempfile.gettempdir())
 
-from ._umpnet import Articulation, Env, EnvConfig, VecEnv, __version__, categories
+from ._umpnet import Articulation, Env, EnvConfig, VecEnv, __version__, benchmark_seeds, categories
 from .policy import Policy
 
-__all__ = ["Articulation", "Env", "EnvConfig", "Policy", "VecEnv", "__version__", "categories"]
+__all__ = [
+    "Articulation",
+    "Env",
+    "EnvConfig",
+    "Policy",
+    "VecEnv",
+    "__version__",
+    "benchmark_seeds",
+    "categories",
+]

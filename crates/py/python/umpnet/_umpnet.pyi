@@ -7,6 +7,7 @@ import numpy as np
 Observation: TypeAlias = dict[str, np.ndarray]
 
 def categories() -> list[tuple[str, str, int]]: ...
+def benchmark_seeds(task: str, row: str, index: int, seed: int = 0, object: bool = False) -> tuple[int, int]: ...
 
 class EnvConfig:
     def __init__(
@@ -79,6 +80,15 @@ class Policy:
     def direction_batch(
         self, images: np.ndarray, references: np.ndarray, pixels: np.ndarray, mode: str = "explore"
     ) -> list[dict[str, Any]]: ...
+    def reset(self, seed: int | None = None) -> None: ...
+    def decide(
+        self,
+        image: np.ndarray,
+        reference: np.ndarray,
+        pixel: tuple[int, int],
+        mode: str = "explore",
+        moved: bool | None = None,
+    ) -> dict[str, Any]: ...
 
 class Articulation:
     def __init__(

@@ -65,21 +65,33 @@ class Policy(_Policy):
             )
         return cls(SHIPPED_MODEL, seed=seed, threads=threads)
 
-    def act(self, obs: dict, task: str = "exploration") -> dict:
+    def act(self, obs: dict, task: str = "exploration", info: dict | None = None) -> dict:
         """The gym action for ``obs``: the grasp pixel in phase 0, then a
         direction (straight up when the policy stops, which the environment
         takes as a move that ends nothing). ``task`` is ``exploration`` or
         ``goal``; toward a goal, the grasp and every direction read
-        ``obs["reference"]`` as the goal observation."""
+        ``obs["reference"]`` as the goal observation.
+
+        Pass the last step's ``info`` and the policy decides as ``umpnet
+        eval`` does: a move that moved nothing (``info["moved"]``) is not
+        tried again until one does. With ``reset(seed)`` at each episode's
+        start, and the benchmark's scene and seed, it makes the benchmark's
+        moves (``umpnet.benchmark_seeds`` gives them). When the policy
+        stops (no candidate it expects to help), ``self.stopped`` is True
+        and the action is straight up; ``umpnet eval`` ends the episode there."""
         if task not in ("exploration", "goal"):
             raise ValueError(f"task {task!r}: expected 'exploration' or 'goal'")
         image = np.asarray(obs["image"], np.float32)
         reference = np.asarray(obs["reference"], np.float32)
+        self.stopped = False
         if int(np.asarray(obs["phase"])) == 0:
+            self.reset()  # a new grasp: nothing banned yet
             row, col = self.position(image, reference if task == "goal" else None)
             return {"phase": 0, "pixel": np.array([row, col], np.int64), "direction": np.zeros(3, np.float32)}
-        pixel = np.asarray(obs["gripper_pixel"], np.int64).reshape(1, 2)
+        row, col = (int(v) for v in np.asarray(obs["gripper_pixel"]).reshape(2))
+        moved = None if info is None or "moved" not in info else bool(info["moved"])
         mode = "goal" if task == "goal" else "explore"
-        decision = self.direction_batch(image[None], reference[None], pixel, mode)[0]
-        direction = decision["direction"] if decision["direction"] is not None else [0.0, 0.0, 1.0]
+        decision = self.decide(image, reference, (row, col), mode, moved)
+        self.stopped = decision["direction"] is None
+        direction = [0.0, 0.0, 1.0] if self.stopped else decision["direction"]
         return {"phase": 1, "pixel": np.zeros(2, np.int64), "direction": np.asarray(direction, np.float32)}
