@@ -296,6 +296,7 @@ mod arrays;
 mod buffers;
 mod config;
 mod fields;
+mod mixed;
 mod physics;
 mod policy;
 mod probe;

@@ -3,20 +3,18 @@
 mod merge;
 mod plot;
 mod report;
+mod rows;
 mod stream;
 mod tables;
 
 use crate::{Ctx, usage};
 use anyhow::{Context, Result};
-use report::{Aggregate, ObjectInfo, PartnetInfo, Report, RunInfo, Scored};
-use sha2::{Digest, Sha256};
+use report::{Aggregate, Report, RunInfo, Scored};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use stream::{EpisodeWriter, RunState};
 use umpnet_eval::Protocol;
-use umpnet_eval::benchmark::{
-    BenchConfig, PolicyFactory, Row, Shard, object_rows, stream_benchmark,
-};
+use umpnet_eval::benchmark::{BenchConfig, PolicyFactory, Row, Shard, stream_benchmark};
 use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
@@ -138,27 +136,6 @@ fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
 
 /// SHA-256 over a package's files (names, sizes and bytes, in name order):
 /// shards that loaded different packages under one name must not merge.
-fn package_digest(dir: &Path) -> Result<String> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .with_context(|| format!("reading {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file())
-        .collect();
-    files.sort();
-    let mut h = Sha256::new();
-    for f in &files {
-        let bytes = std::fs::read(f).with_context(|| format!("reading {}", f.display()))?;
-        let name = f.file_name().map(|n| n.to_string_lossy().into_owned());
-        h.update(name.unwrap_or_default().as_bytes());
-        h.update([0]);
-        h.update((bytes.len() as u64).to_le_bytes());
-        h.update(&bytes);
-    }
-    Ok(format!("sha256:{:x}", h.finalize()))
-}
-
-/// `auto` becomes what this machine runs, so that the report says which
-/// renderer made the images (and shards from different renderers do not merge).
 fn resolve_renderer(kind: RendererKind) -> Result<RendererKind> {
     if kind != RendererKind::Auto {
         return Ok(kind);
@@ -178,189 +155,21 @@ pub fn run(ctx: &Ctx, cmd: &EvalCmd) -> Result<()> {
     }
 }
 
-/// SHA-256 over every file under an object's folder (relative names, sizes
-/// and bytes, in name order).
-fn folder_digest(dir: &Path) -> Result<String> {
-    fn walk(dir: &Path, root: &Path, h: &mut Sha256, depth: usize) -> Result<()> {
-        if depth > 8 {
-            anyhow::bail!("{}: folders nested too deep", dir.display());
-        }
-        let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
-            .with_context(|| format!("reading {}", dir.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .collect();
-        entries.sort();
-        for p in entries {
-            let meta = std::fs::symlink_metadata(&p)?;
-            if meta.is_dir() {
-                walk(&p, root, h, depth + 1)?;
-            } else if meta.is_file() {
-                let bytes =
-                    std::fs::read(&p).with_context(|| format!("reading {}", p.display()))?;
-                let rel = p
-                    .strip_prefix(root)
-                    .unwrap_or(&p)
-                    .to_string_lossy()
-                    .into_owned();
-                h.update(rel.as_bytes());
-                h.update([0]);
-                h.update((bytes.len() as u64).to_le_bytes());
-                h.update(&bytes);
-            }
-        }
-        Ok(())
-    }
-    let mut h = Sha256::new();
-    walk(dir, dir, &mut h, 0)?;
-    Ok(format!("sha256:{:x}", h.finalize()))
-}
-
-/// The categories' rows on a PartNet-Mobility folder's instances, the
-/// categories that have some, and what the run used (for results.json). A
-/// category listed by --categories must have instances; one chosen by
-/// --split without any is left out, with a notice.
-fn partnet_rows(
-    dir: &Path,
-    split_file: Option<&Path>,
-    categories: &[Category],
-    listed: bool,
-) -> Result<(Vec<Category>, Vec<Row>, Option<PartnetInfo>)> {
-    let found =
-        umpnet_eval::partnet::read_instances(dir, split_file).map_err(|e| usage(e.to_string()))?;
-    let missing: Vec<&str> = categories
-        .iter()
-        .filter(|c| !found.contains_key(c))
-        .map(|c| c.name())
-        .collect();
-    if !missing.is_empty() {
-        let what = format!(
-            "--partnet {}: no instances of {}",
-            dir.display(),
-            missing.join(", ")
-        );
-        if listed {
-            return Err(usage(what));
-        }
-        eprintln!("notice: {what}; their rows are left out");
-    }
-    let mut kept = Vec::new();
-    let mut rows = Vec::new();
-    let mut instances = Vec::new();
-    for c in categories {
-        let Some(list) = found.get(c) else { continue };
-        for i in list {
-            let folder = i.urdf.parent().unwrap_or(Path::new("."));
-            instances.push(ObjectInfo {
-                name: format!("{}/{}", c.name(), i.id),
-                urdf: i.urdf.to_string_lossy().into_owned(),
-                sha256: folder_digest(folder)?,
-            });
-        }
-        kept.push(*c);
-        rows.push(Row::Instances(umpnet_eval::benchmark::InstanceRow {
-            category: *c,
-            instances: list.clone(),
-        }));
-    }
-    if kept.is_empty() {
-        return Err(usage(format!(
-            "--partnet {}: none of the chosen categories has instances",
-            dir.display()
-        )));
-    }
-    let split = split_file.map(Path::to_path_buf).or_else(|| {
-        let default = dir.join("split-full.json");
-        default.is_file().then_some(default)
-    });
-    Ok((
-        kept,
-        rows,
-        Some(PartnetInfo {
-            dir: dir.to_string_lossy().into_owned(),
-            split_file: split
-                .map(|f| -> Result<String> {
-                    let bytes =
-                        std::fs::read(&f).with_context(|| format!("reading {}", f.display()))?;
-                    Ok(format!(
-                        "{} sha256:{:x}",
-                        f.display(),
-                        Sha256::digest(&bytes)
-                    ))
-                })
-                .transpose()?,
-            instances,
-        }),
-    ))
-}
-
 #[expect(
     clippy::too_many_lines,
     reason = "the eval command's setup, run and report in order; the next to split"
 )]
 fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
-    let split = match (&a.split, &a.objects) {
-        (Some(s), _) => Some(s.as_str()),
-        (None, Some(_)) => None,
-        (None, None) => Some("all"),
-    };
-    let categories: Vec<Category> = if !a.categories.is_empty() {
-        a.categories.clone()
-    } else {
-        match split {
-            None => Vec::new(),
-            Some("train") => Category::ALL
-                .iter()
-                .copied()
-                .filter(|c| c.is_train())
-                .collect(),
-            Some("test") => Category::ALL
-                .iter()
-                .copied()
-                .filter(|c| !c.is_train())
-                .collect(),
-            Some("all") => Category::ALL.to_vec(),
-            Some(s) => return Err(usage(format!("--split {s}: expected train, test or all"))),
-        }
-    };
-    for (i, c) in categories.iter().enumerate() {
-        if categories.get(..i).is_some_and(|before| before.contains(c)) {
-            return Err(usage(format!(
-                "--categories: {} is listed twice (its row would count its episodes twice)",
-                c.name()
-            )));
-        }
-    }
     if a.episodes_per_category == 0 {
         return Err(usage("--episodes-per-category must be at least 1"));
     }
-    let object_rows = match &a.objects {
-        Some(dir) => object_rows(dir).map_err(|e| usage(e.to_string()))?,
-        None => Vec::new(),
-    };
-    let mut objects = Vec::new();
-    for row in &object_rows {
-        if let Row::Object(o) = row {
-            let folder = o.urdf.parent().unwrap_or(Path::new("."));
-            objects.push(ObjectInfo {
-                name: o.name.clone(),
-                urdf: o.urdf.to_string_lossy().into_owned(),
-                sha256: folder_digest(folder)?,
-            });
-        }
-    }
-    let (categories, category_rows, partnet) = match &a.partnet {
-        Some(dir) => partnet_rows(
-            dir,
-            a.split_file.as_deref(),
-            &categories,
-            !a.categories.is_empty(),
-        )?,
-        None => {
-            let rows = categories.iter().map(|c| Row::Category(*c)).collect();
-            (categories, rows, None)
-        }
-    };
-    let rows: Vec<Row> = category_rows.into_iter().chain(object_rows).collect();
+    let rows::TableRows {
+        categories,
+        rows,
+        objects,
+        partnet,
+    } = rows::table_rows(a)?;
+
     let threads = a
         .threads
         .map_or_else(rayon::current_num_threads, usize::from)
@@ -380,7 +189,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     )?;
     let mut models = BTreeMap::new();
     for (name, dir) in &resolved.packages {
-        models.insert(name.clone(), package_digest(dir)?);
+        models.insert(name.clone(), rows::package_digest(dir)?);
     }
     let policies: Vec<(String, PolicyFactory)> = resolved.factories;
     let names: Vec<String> = policies.iter().map(|(n, _)| n.clone()).collect();

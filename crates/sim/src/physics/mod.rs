@@ -20,6 +20,7 @@ mod ideal;
 pub(crate) mod kinematics;
 mod pgs;
 mod reference;
+mod reference_rows;
 
 use crate::error::Result;
 use crate::math::{Pose3, Vec3};

@@ -31,6 +31,7 @@
 )]
 use super::kinematics::{forward_kinematics, joint_motion, movable_chain, moved_links};
 use super::pgs::{MAX_DOFS, RowSpace, invert, solve};
+use super::reference_rows::{Responses, push_limit_rows, push_suction_rows, unit};
 use super::{ActionOutcome, PhysicsConfig};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3};
@@ -109,7 +110,7 @@ struct Suction {
 }
 
 /// A chain's joint-space matrix, row-major in the first n x n entries.
-type ChainMatrix = [f64; MAX_CHAIN * MAX_CHAIN];
+pub(super) type ChainMatrix = [f64; MAX_CHAIN * MAX_CHAIN];
 
 #[derive(Clone)]
 struct Mount {
@@ -446,125 +447,8 @@ impl ReferenceArticulation {
     }
 }
 
-/// How a row's impulse changes the velocities: through the chain's inverse
-/// mass for the object's joints, the mount's mass for the mount's three.
-struct Responses<'a> {
-    n: usize,
-    inv_mass: &'a ChainMatrix,
-    mount_mass: f64,
-}
-
-impl Responses<'_> {
-    /// A row's response: the chain's inverse mass on the chain's part of
-    /// its Jacobian, the mount's on the mount's.
-    fn of(&self, jacobian: &[f64; MAX_DOFS]) -> [f64; MAX_DOFS] {
-        let n = self.n;
-        let mut response = [0.0; MAX_DOFS];
-        for (a, r) in response.iter_mut().enumerate().take(n) {
-            *r = (0..n).map(|b| self.inv_mass[a * n + b] * jacobian[b]).sum();
-        }
-        for i in 0..3 {
-            response[n + i] = jacobian[n + i] / self.mount_mass;
-        }
-        response
-    }
-
-    /// A row on one velocity (a motor, a limit, a brake): its response is a
-    /// column of the inverse mass.
-    fn unit(&self, i: usize, sign: f64) -> [f64; MAX_DOFS] {
-        let n = self.n;
-        let mut response = [0.0; MAX_DOFS];
-        if i < n {
-            for (a, r) in response.iter_mut().enumerate().take(n) {
-                *r = self.inv_mass[a * n + i] * sign;
-            }
-        } else {
-            response[i] = sign / self.mount_mass;
-        }
-        response
-    }
-}
-
-/// The Jacobian of a row on velocity `i` alone.
-fn unit(i: usize, sign: f64) -> [f64; MAX_DOFS] {
-    let mut j = [0.0; MAX_DOFS];
-    j[i] = sign;
-    j
-}
-
-/// The suction, per world axis: the grasped `point`'s velocity minus the
-/// mount's, closing `gap` (point minus mount) at the `erp` rate.
-fn push_suction_rows(
-    space: &mut RowSpace,
-    responses: &Responses<'_>,
-    axes: &[WorldAxis; MAX_CHAIN],
-    (point, gap): (Vec3, Vec3),
-    (erp, hk): (f64, f64),
-    bound: f64,
-) {
-    let n = responses.n;
-    let mut point_velocity = [Vec3::ZERO; MAX_CHAIN];
-    for (a, v) in point_velocity.iter_mut().enumerate().take(n) {
-        *v = linear(&axes[a], point);
-    }
-    for i in 0..3 {
-        let mut jac = [0.0; MAX_DOFS];
-        for (ja, v) in jac.iter_mut().zip(&point_velocity).take(n) {
-            *ja = v[i] as f64;
-        }
-        jac[n + i] = -1.0;
-        space.push(
-            &jac,
-            &responses.of(&jac),
-            -(gap[i] as f64) * erp / hk,
-            -bound,
-            bound,
-        );
-    }
-}
-
-/// Joint limits. Bullet's rule: while clear of a limit, the solve may change
-/// the joint's speed toward it by at most gap/h (its speed before the solve,
-/// `x`, is not counted); past it, the error is closed at the erp rate.
-#[expect(
-    clippy::too_many_arguments,
-    reason = "one stage of the solver's step: what it reads, named"
-)]
-fn push_limit_rows(
-    space: &mut RowSpace,
-    responses: &Responses<'_>,
-    model: &ObjectModel,
-    q: &[f32],
-    chain: &[usize],
-    x: &[f64; MAX_DOFS],
-    hk: f64,
-    erp: f64,
-) {
-    for (a, &j) in chain.iter().enumerate() {
-        let jm = &model.joints[j];
-        if jm.kind == JointKind::Continuous || !jm.lower.is_finite() {
-            continue;
-        }
-        let q = q[j] as f64;
-        for (sign, gap) in [(1.0, q - jm.lower as f64), (-1.0, jm.upper as f64 - q)] {
-            let target = if gap > 0.0 {
-                sign * x[a] - gap / hk
-            } else {
-                -gap * erp / hk
-            };
-            space.push(
-                &unit(a, sign),
-                &responses.unit(a, sign),
-                target,
-                0.0,
-                f64::INFINITY,
-            );
-        }
-    }
-}
-
 /// A chain joint in world: its kind, axis and origin.
-type WorldAxis = (JointKind, Vec3, Vec3);
+pub(super) type WorldAxis = (JointKind, Vec3, Vec3);
 
 /// Each chain joint's axis and origin in world (unused slots: fixed).
 fn chain_axes(
@@ -583,7 +467,7 @@ fn chain_axes(
 
 /// The velocity of the point `at` per unit speed of the joint (its motion
 /// subspace): axis x (at - origin) for a hinge, the axis for a slider.
-fn linear(&(kind, axis, origin): &WorldAxis, at: Vec3) -> Vec3 {
+pub(super) fn linear(&(kind, axis, origin): &WorldAxis, at: Vec3) -> Vec3 {
     if kind.is_prismatic() {
         axis
     } else {
