@@ -9,9 +9,20 @@ use nalgebra::{Matrix3, Vector3};
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 #[serde(tag = "type", rename_all = "lowercase")]
+/// A joint inferred from the moves that moved the part (world frame).
 pub enum JointEstimate {
-    Prismatic { axis: [f32; 3] },
-    Revolute { axis: [f32; 3], point: [f32; 3] },
+    /// A slide.
+    Prismatic {
+        /// Unit direction of the slide.
+        axis: [f32; 3],
+    },
+    /// A hinge.
+    Revolute {
+        /// Unit direction of the hinge axis.
+        axis: [f32; 3],
+        /// A point on the hinge axis.
+        point: [f32; 3],
+    },
 }
 
 /// Angle in degrees between two axes, ignoring their sign.

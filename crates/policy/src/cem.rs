@@ -9,6 +9,7 @@ use nalgebra::{Rotation3, Unit, Vector3};
 use rand::Rng;
 use rand_distr::StandardNormal;
 
+/// Candidates per CEM round: the paper's 64.
 pub const CANDIDATES: usize = 64;
 /// Most candidates per round a caller may ask for (`--cem-samples`).
 pub const MAX_CANDIDATES: usize = 1024;
@@ -18,10 +19,16 @@ pub const MAX_CANDIDATES: usize = 1024;
 pub enum Sampler {
     /// The paper's cross-entropy method: `n` evenly spread directions, then
     /// `n` resampled around the best of them; the best of all is chosen.
-    Cem { n: usize },
+    Cem {
+        /// Candidates per round.
+        n: usize,
+    },
     /// The paper's ablation: one round of `2n` evenly spread directions (the
     /// same number of network evaluations as CEM with `n`).
-    Uniform { n: usize },
+    Uniform {
+        /// Half the round's candidates.
+        n: usize,
+    },
 }
 
 impl Default for Sampler {
@@ -52,6 +59,7 @@ pub const RESAMPLE_NOISE: f32 = 0.1;
 /// Directions closer than this angle to a banned one are not proposed.
 pub const BAN_COS: f32 = 0.94; // about 20 degrees
 
+/// What a decision is for: which candidates count and when to stop.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
@@ -64,19 +72,24 @@ pub enum Mode {
 /// What the networks say about one candidate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Score {
+    /// Predicted joint change |j_t - j_{t-1}| (rad or m).
     pub distance: f32,
     /// argmax class: -1, 0 or +1.
     pub aot: i8,
 }
 
+/// One decision: the chosen direction, and every candidate scored on the way.
 #[derive(Clone, Debug)]
 pub struct CemResult {
     /// None: goal mode found no direction predicted to move toward the goal.
     pub direction: Option<Vector3<f32>>,
+    /// Every candidate scored, both rounds (unit, world frame).
     pub candidates: Vec<Vector3<f32>>,
+    /// The networks' scores of `candidates`, in the same order.
     pub scores: Vec<Score>,
 }
 
+/// `n` unit directions spread evenly over the sphere (a Fibonacci lattice).
 pub fn fibonacci_sphere(n: usize) -> Vec<Vector3<f32>> {
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
     (0..n)
@@ -89,6 +102,8 @@ pub fn fibonacci_sphere(n: usize) -> Vec<Vector3<f32>> {
         .collect()
 }
 
+/// A rotation about a uniformly random axis by a uniformly random angle:
+/// turns the lattice so that no direction is favoured across decisions.
 pub fn random_rotation(rng: &mut impl Rng) -> Rotation3<f32> {
     loop {
         let v = Vector3::new(

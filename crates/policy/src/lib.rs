@@ -1,8 +1,10 @@
 //! umpnet-policy: the UMPNet policy runtime. Inputs are RGB-D frames,
 //! intrinsics and a camera pose — from the simulator or a real camera; this
 //! crate never depends on the simulator.
+#![warn(missing_docs)]
 pub mod axis;
 pub mod cem;
+/// Errors of the runtime: bad input, a bad package, ONNX Runtime failing.
 pub mod error;
 pub mod memory;
 pub mod observation;

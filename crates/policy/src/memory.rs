@@ -4,6 +4,7 @@
 //! benchmark's policy and the Python `Policy.act`.
 use nalgebra::Vector3;
 
+/// The memory of one episode; `clear` at its start.
 #[derive(Clone, Debug, Default)]
 pub struct EpisodeMemory {
     banned: Vec<Vector3<f32>>,

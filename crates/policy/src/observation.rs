@@ -10,12 +10,15 @@ use nalgebra::Vector3;
 use ndarray::Array3;
 use rayon::prelude::*;
 
+/// Channels of an observation: xyz, rgb, normal, depth.
 pub const CHANNELS: usize = 10;
 
 /// A camera frame as plain data; images row-major.
 #[derive(Clone, Copy, Debug)]
 pub struct CameraFrame<'a> {
+    /// Columns.
     pub width: usize,
+    /// Rows.
     pub height: usize,
     /// 3 bytes per pixel.
     pub rgb: &'a [u8],
@@ -28,6 +31,7 @@ pub struct CameraFrame<'a> {
 }
 
 impl CameraFrame<'_> {
+    /// Checks sizes, intrinsics and pose: an error names what is wrong.
     pub fn validate(&self) -> Result<()> {
         let n = self.width * self.height;
         if n == 0 {
@@ -91,6 +95,7 @@ impl CameraFrame<'_> {
         Some(Vector3::from(self.back_project(row, col, d)))
     }
 
+    /// The camera's centre in the world frame.
     pub fn camera_position(&self) -> Vector3<f32> {
         let m = &self.world_from_camera;
         Vector3::new(m[0][3], m[1][3], m[2][3])
@@ -283,15 +288,22 @@ mod tests {
 /// intrinsics scaled to match; owns its buffers.
 #[derive(Clone, Debug)]
 pub struct OwnedFrame {
+    /// Columns.
     pub width: usize,
+    /// Rows.
     pub height: usize,
+    /// 3 bytes per pixel.
     pub rgb: Vec<u8>,
+    /// Metres along the optical axis; 0 = no measurement.
     pub depth: Vec<f32>,
+    /// fx, fy, cx, cy, scaled with the image.
     pub intrinsics: [f32; 4],
+    /// Camera pose, row-major 4x4 (unchanged by resizing).
     pub world_from_camera: [[f32; 4]; 4],
 }
 
 impl OwnedFrame {
+    /// The frame as a [`CameraFrame`] borrowing these buffers.
     pub fn view(&self) -> CameraFrame<'_> {
         CameraFrame {
             width: self.width,
@@ -304,6 +316,8 @@ impl OwnedFrame {
     }
 }
 
+/// `frame` at `height` x `width` (nearest neighbour, so depths are never
+/// blended across an edge), its intrinsics scaled to match.
 pub fn resize_nearest(frame: &CameraFrame<'_>, height: usize, width: usize) -> Result<OwnedFrame> {
     frame.validate()?;
     let (sx, sy) = (

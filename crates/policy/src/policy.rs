@@ -19,7 +19,9 @@ pub const GOAL_DIFF_M: f32 = 0.02;
 
 /// One environment's direction decision.
 pub struct DecisionInput<'a> {
+    /// The current observation, H x W x 10.
     pub observation: ArrayView3<'a, f32>,
+    /// The reference observation: the episode's first (exploring) or the goal.
     pub reference: ArrayView3<'a, f32>,
     /// Where the gripper holds the object, in image coordinates (row, col).
     pub pixel: (usize, usize),
@@ -28,6 +30,7 @@ pub struct DecisionInput<'a> {
     /// The direction executed last in this episode (world frame), which the
     /// `prev90` filter reads; None before the first.
     pub previous: Option<Vector3<f32>>,
+    /// Exploring or seeking the reference state.
     pub mode: Mode,
 }
 
@@ -35,14 +38,20 @@ pub struct DecisionInput<'a> {
 // where callers choose it.
 pub use crate::package::DirectionFilter;
 
+/// Where to grasp, and the map it was chosen from.
 #[derive(Clone, Debug)]
 pub struct PositionChoice {
+    /// (row, col) of the grasp.
     pub pixel: (usize, usize),
+    /// H x W: the probability that acting at each pixel moves the object.
     pub affordance: Array2<f32>,
 }
 
+/// The learned policy: a package's networks, the CEM over directions and
+/// the selection rules; no simulator.
 #[derive(Clone)]
 pub struct UmpnetPolicy {
+    /// The networks.
     pub package: Arc<ModelPackage>,
     /// The package's `direction_filter`, unless overridden.
     pub direction_filter: DirectionFilter,
@@ -51,6 +60,7 @@ pub struct UmpnetPolicy {
 }
 
 impl UmpnetPolicy {
+    /// The policy of `package`, with its own direction filter and the paper's CEM.
     pub fn new(package: Arc<ModelPackage>) -> Self {
         // The loader has checked the name.
         let direction_filter = package.meta.direction_filter;
@@ -61,7 +71,6 @@ impl UmpnetPolicy {
         }
     }
 
-    /// The same package under another direction filter.
     /// Draws candidates with `sampler` instead of the paper's CEM with 64 per
     /// round (the sampler ablations of the paper's appendix).
     pub fn with_sampler(mut self, sampler: Sampler) -> Self {
@@ -69,11 +78,13 @@ impl UmpnetPolicy {
         self
     }
 
+    /// The same package under another direction filter.
     pub fn with_direction_filter(mut self, filter: DirectionFilter) -> Self {
         self.direction_filter = filter;
         self
     }
 
+    /// (height, width) of the observations the package takes.
     pub fn resolution(&self) -> (usize, usize) {
         (
             self.package.meta.input.height,

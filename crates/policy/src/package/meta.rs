@@ -19,16 +19,22 @@ pub const FORMAT_VERSION: u32 = 1;
 /// The observation a package's networks take.
 #[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
 pub struct InputSpec {
+    /// Rows.
     pub height: usize,
+    /// Columns.
     pub width: usize,
+    /// Channels per pixel (10).
     pub channels: usize,
 }
 
 /// The three networks' file names, beside model.json.
 #[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
 pub struct Files {
+    /// PositionNet.
     pub position: String,
+    /// DirectionNet's image encoders.
     pub direction_encoder: String,
+    /// DirectionNet's action decoder.
     pub direction_decoder: String,
 }
 
@@ -37,12 +43,18 @@ pub struct Files {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Variant {
+    /// UMPNet: Dist and AoT branches, trained on sequences.
     #[default]
     Umpnet,
+    /// UMPNet trained on single steps only.
     SingleStep,
+    /// The AoT branch alone.
     AotOnly,
+    /// One signed distance instead of Dist and AoT.
     SignedDist,
+    /// Where2Act-style: does this action move the object at all.
     Where2act,
+    /// Regresses the direction from the current and goal observations.
     Inverse,
 }
 
@@ -80,6 +92,7 @@ pub enum DirectionFilter {
 }
 
 impl DirectionFilter {
+    /// Every filter, in the order the help lists them.
     pub const ALL: [DirectionFilter; 3] = [Self::None, Self::Normal90, Self::Prev90];
 
     /// The name in model.json's `direction_filter` and on the command line.
@@ -109,14 +122,22 @@ impl std::str::FromStr for DirectionFilter {
 /// `model.json`.
 #[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
 pub struct ModelMeta {
+    /// `umpnet-model`.
     pub format: String,
+    /// The format's version ([`FORMAT_VERSION`]).
     pub version: u32,
+    /// The method it was trained as.
     #[serde(default)]
     pub variant: Variant,
+    /// The observation its networks take.
     pub input: InputSpec,
+    /// Width of the encoder's embeddings.
     pub embedding: usize,
+    /// The decoder's outputs.
     pub branches: Vec<Branch>,
+    /// Whether the networks read the reference observation.
     pub uses_reference: bool,
+    /// The network files.
     pub files: Files,
     /// The filter the runtime applies unless a caller overrides it.
     #[serde(default)]
@@ -133,8 +154,10 @@ pub struct ModelMeta {
     /// keep δ = 0.15.
     #[serde(default = "default_signed_distance_threshold")]
     pub signed_distance_threshold: f32,
+    /// What made the package: command, seed, commit, epochs (free-form).
     #[serde(default)]
     pub provenance: serde_json::Value,
+    /// Scores it was shipped with (free-form).
     #[serde(default)]
     pub evaluation: serde_json::Value,
 }

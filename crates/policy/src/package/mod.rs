@@ -21,7 +21,9 @@ pub const MAX_DISTANCE_NOISE: f32 = 0.05;
 /// Scores of candidate directions: distance >= 0 and AoT class probabilities (-1, 0, +1).
 #[derive(Clone, Debug)]
 pub struct DirectionScores {
+    /// Predicted joint change per candidate.
     pub distance: Array1<f32>,
+    /// Candidates x 3: probabilities of AoT -1, 0, +1.
     pub aot_probs: Array2<f32>,
 }
 
@@ -31,9 +33,14 @@ struct Sessions {
     decoder: Session,
 }
 
+/// A loaded model package: its three networks in ONNX Runtime sessions,
+/// checked against model.json.
 pub struct ModelPackage {
+    /// The package's folder.
     pub dir: PathBuf,
+    /// model.json.
     pub meta: ModelMeta,
+    /// What the decoder outputs, and so how candidates are ranked.
     pub branches: Branches,
     /// Session sets, one per concurrent user.
     pool: Vec<Mutex<Sessions>>,
