@@ -249,6 +249,7 @@ def test_output_folders_are_claimed_never_overwritten_silently(tmp_path):
 BAD_USAGE = [
     (["explore"], 2, "--category"),
     (["explore", "--category", "Spaceship"], 2, "unknown category"),
+    (["explore", "--category", "Spaceship"], 2, "or a test category (Box, Phone,"),
     (["explore", "--category", "drawer"], 2, "did you mean StorageFurniture"),
     (["eval", "--split", "nope"], 2, "--split nope"),
     (["render", "--category", "Door", "--resolution", "12", "--out", "/tmp/x"], 2, "HEIGHTxWIDTH"),

@@ -63,11 +63,19 @@ impl std::str::FromStr for Category {
             .copied()
             .find(|c| c.name().to_ascii_lowercase() == alias)
             .ok_or_else(|| {
-                let names: Vec<&str> = Category::ALL.iter().map(|c| c.name()).collect();
+                let names = |train: bool| {
+                    Category::ALL
+                        .iter()
+                        .filter(|c| c.is_train() == train)
+                        .map(|c| c.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
                 SimError::Other(format!(
-                    "unknown category `{s}`{}; expected one of {}",
+                    "unknown category `{s}`{}; expected a training category ({}) or a test category ({})",
                     category_hint(&key),
-                    names.join(", ")
+                    names(true),
+                    names(false)
                 ))
             })
     }
