@@ -87,6 +87,11 @@ impl VecEnv {
         self.envs.len()
     }
 
+    /// Current joint values of every environment's object (a list each).
+    fn joint_positions(&self) -> Vec<Vec<f32>> {
+        self.envs.iter().map(TrainEnv::joint_positions).collect()
+    }
+
     /// Resets every environment (optionally to given scenes: dicts from
     /// `.scenes`, or their JSON text, one each).
     #[pyo3(signature = (scenes=None))]

@@ -241,3 +241,97 @@ def test_the_shipped_policy_through_gym_makes_the_moves_umpnet_eval_made(task, t
             assert bool(info["success"]) == ep["metrics"]["success"]
         compared += len(recorded)
     assert compared >= 9  # the episodes made moves, not only grasps
+
+
+@pytest.mark.parametrize("obs_mode", ["image", "rgbd", "pointcloud", "state"])
+def test_every_obs_mode_passes_the_env_checker_and_says_what_the_image_says(obs_mode):
+    """ManiSkill's observation modes: each passes gymnasium's env checker
+    (render included) without warnings, fits its space through an episode in
+    both env classes, and carries the same facts as the 10-channel image."""
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+
+    res = (24, 32)
+    env = gym.make("umpnet/Goal-v0", resolution=res, obs_mode=obs_mode, render_mode="rgb_array", category="Door")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped)
+    obs, _ = env.reset(seed=5)
+    image_env = gym.make("umpnet/Goal-v0", resolution=res, category="Door")
+    image, _ = image_env.reset(seed=5)
+    img = image["image"]
+    if obs_mode == "rgbd":
+        assert np.array_equal(obs["depth"][..., 0], img[..., 9]) and obs["rgb"].dtype == np.uint8
+        assert np.array_equal(obs["rgb"], (np.clip(img[..., 3:6], 0, 1) * 255).astype(np.uint8))
+    elif obs_mode == "pointcloud":
+        assert np.array_equal(obs["xyz"], img[..., 0:3].reshape(-1, 3))
+        assert np.array_equal(obs["valid"].astype(bool), img[..., 9].reshape(-1) > 0)
+    elif obs_mode == "state":
+        scene = env.unwrapped._env.scene
+        n = len(scene["joints"])
+        assert np.allclose(obs["joints"][:n], scene["joints"]) and obs["joint_mask"].sum() == n
+        assert np.allclose(obs["reference_joints"][:n], scene["goal"]["joints"]) and obs["grasped_joint"] == -1
+    # Through an episode, in the single and the vector env alike.
+    scripted = umpnet.Env("Door", seed=5, resolution=res, task="goal")
+    scripted.reset()
+    row, col = scripted.scripted_action("oracle")
+    obs, *_ = env.step({"phase": 0, "pixel": np.array([row, col]), "direction": np.zeros(3, np.float32)})
+    assert env.observation_space.contains(obs)
+    if obs_mode == "state":
+        assert obs["grasped_joint"] >= 0
+        before = obs["joints"].copy()
+        obs, *_ = env.step({"phase": 1, "pixel": np.zeros(2, np.int64), "direction": np.array([0, -1, 0], np.float32)})
+        assert env.observation_space.contains(obs) and not np.array_equal(before, obs["joints"])
+    venv = gym.make_vec("umpnet/Explore-v0", num_envs=2, resolution=res, obs_mode=obs_mode)
+    vobs, _ = venv.reset(seed=1)
+    assert venv.observation_space.contains(vobs)
+    vobs, *_ = venv.step(venv.action_space.sample())
+    assert venv.observation_space.contains(vobs)
+    with pytest.raises(ValueError, match="obs_mode 'depth'"):
+        gym.make("umpnet/Goal-v0", obs_mode="depth")
+
+
+@pytest.mark.parametrize("fmt", ["gif", "mp4"])
+def test_record_episode_writes_one_whole_video_per_episode(fmt, tmp_path):
+    """RecordEpisode writes each episode's rendered frames (reset plus one per
+    step), named in order, and says where in the last step's info."""
+    from PIL import Image
+
+    env = umpnet.gym.RecordEpisode(
+        gym.make("umpnet/Explore-v0", resolution=(24, 32), render_mode="rgb_array", category="Door", max_steps=3),
+        tmp_path / "videos",
+        format=fmt,
+        scale=2,
+    )
+    for episode in range(2):
+        env.reset(seed=episode)
+        steps, done = 0, False
+        while not done:
+            action = env.action_space.sample()
+            action["phase"] = 0 if steps == 0 else 1
+            if steps == 0:  # a grasp on the door, so that every step changes the picture
+                action["pixel"] = np.array(env.unwrapped._env.scripted_action("oracle"))
+            _, _, terminated, truncated, info = env.step(action)
+            steps, done = steps + 1, terminated or truncated
+        video = Path(info["video"])
+        assert video.name == f"episode_{episode:04d}.{fmt}" and video.is_file()
+        if fmt == "gif":
+            gif = Image.open(video)
+            # Pillow merges identical frames into one of their summed duration:
+            # the playback time says how many frames were written.
+            total = 0
+            for k in range(gif.n_frames):
+                gif.seek(k)
+                total += gif.info["duration"]
+            assert total == (steps + 1) * 250 and gif.size == (64, 48)
+        else:
+            import imageio_ffmpeg
+
+            reader = imageio_ffmpeg.read_frames(str(video))
+            meta = next(reader)
+            assert meta["size"] == (64, 48) and sum(1 for _ in reader) == steps + 1
+    assert sorted(p.name for p in (tmp_path / "videos").iterdir()) == [f"episode_0000.{fmt}", f"episode_0001.{fmt}"]
+    env.close()
+    with pytest.raises(ValueError, match="render_mode='rgb_array'"):
+        umpnet.gym.RecordEpisode(gym.make("umpnet/Explore-v0"), tmp_path)

@@ -23,6 +23,10 @@ A grasp on nothing movable (or, in the goal task, on the wrong part) ends the
 episode. The direction budget is the category's (the paper's), unless
 ``max_steps`` is given. ``info`` carries ``success`` and ``elapsed_steps``.
 
+``obs_mode`` chooses what the agent observes: ``image`` (the default, what
+``umpnet.Policy`` reads), ``rgbd``, ``pointcloud`` or ``state``
+(``umpnet.obs_modes`` describes each).
+
 Observations are fresh arrays, as gymnasium's wrappers (frame stacks,
 recorders) expect. ``copy=False`` returns the environment's reused buffers
 instead (the zero-copy path of ``umpnet.Env``): faster, but each step
@@ -39,7 +43,11 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from . import obs_modes
 from ._umpnet import Env, VecEnv, categories, score_step
+from .record import RecordEpisode
+
+__all__ = ["RecordEpisode", "UmpnetEnv", "UmpnetVectorEnv", "score"]
 
 # The paper's per-category budgets of direction actions (defined once, in Rust).
 BUDGETS = {name: budget for name, _, budget in categories()}
@@ -76,14 +84,18 @@ def rgb(image) -> np.ndarray:
 class UmpnetEnv(gym.Env):
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": RENDER_FPS}
 
-    def __init__(self, task="exploration", max_steps=None, resolution=(96, 128), render_mode=None, **env_kwargs):
+    def __init__(
+        self, task="exploration", max_steps=None, resolution=(96, 128), render_mode=None, obs_mode="image",
+        **env_kwargs,
+    ):  # fmt: skip
         self.task, self.max_steps, self.render_mode = task, max_steps, render_mode
+        self.obs_mode = obs_modes.check(obs_mode)
         h, w = resolution
         self._seed = env_kwargs.pop("seed", 0)
         env_kwargs.setdefault("copy", True)
         self._kwargs = dict(task=task, resolution=resolution, **env_kwargs)
         self._env = Env(seed=self._seed, **self._kwargs)
-        self.observation_space, self.action_space = self.spaces(h, w)
+        self.observation_space, self.action_space = self.spaces(h, w, obs_mode)
         self._obs = None
         self._phase = 0
         self._t = 0
@@ -91,19 +103,9 @@ class UmpnetEnv(gym.Env):
         self._grasp = {}
 
     @staticmethod
-    def spaces(h, w):
+    def spaces(h, w, obs_mode="image"):
         """(observation space, action space) of one environment at h x w."""
-        # Per channel: world x, y, z (within the simulator's 1000 m), colour in
-        # [0, 1], unit normal, depth in metres (0 where nothing is seen).
-        low = np.array([-1000.0] * 3 + [0.0] * 3 + [-1.0] * 3 + [0.0], np.float32)
-        high = np.array([1000.0] * 3 + [1.0] * 3 + [1.0] * 3 + [1000.0], np.float32)
-        image = spaces.Box(np.broadcast_to(low, (h, w, 10)), np.broadcast_to(high, (h, w, 10)), dtype=np.float32)
-        # Where the gripper holds the object, in the image ((-1, -1) before the
-        # grasp): the learned policy's direction networks read the image there.
-        gripper = spaces.Box(np.array([-1, -1]), np.array([h - 1, w - 1]), shape=(2,), dtype=np.int64)
-        observation = spaces.Dict(
-            {"image": image, "reference": image, "phase": spaces.Discrete(2), "gripper_pixel": gripper}
-        )
+        observation = obs_modes.space(obs_modes.check(obs_mode), h, w)
         action = spaces.Dict(
             {
                 "phase": spaces.Discrete(2),
@@ -114,12 +116,14 @@ class UmpnetEnv(gym.Env):
         return observation, action
 
     def _observation(self, obs):
-        return {
-            "image": obs["image"],
-            "reference": obs["reference"],
-            "phase": self._phase,
-            "gripper_pixel": np.asarray(obs["gripper_pixel"], np.int64).copy(),
-        }
+        state = None
+        if self.obs_mode == "state":
+            state = {
+                "joints": self._env.joint_positions(),
+                "reference_joints": obs_modes.reference_joints(self._env.scene),
+                "grasped_joint": self._grasp.get("joint", -1),
+            }
+        return obs_modes.convert(self.obs_mode, obs, self._phase, obs["gripper_pixel"], state)
 
     def _budget(self):
         if self.max_steps is not None:
@@ -216,8 +220,10 @@ class UmpnetVectorEnv(VectorEnv):
         max_episode_steps=None,
         resolution=(96, 128),
         render_mode=None,
+        obs_mode="image",
         **env_kwargs,
     ):
+        self.obs_mode = obs_modes.check(obs_mode)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
         self.render_mode = render_mode
@@ -231,7 +237,7 @@ class UmpnetVectorEnv(VectorEnv):
         env_kwargs.setdefault("copy", True)
         self._kwargs = dict(task=task, resolution=resolution, **env_kwargs)
         self._vec = VecEnv(self.num_envs, seed=self._seed, **self._kwargs)
-        one = UmpnetEnv.spaces(h, w)
+        one = UmpnetEnv.spaces(h, w, obs_mode)
         self.single_observation_space, self.single_action_space = one
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -243,14 +249,17 @@ class UmpnetVectorEnv(VectorEnv):
         self._budget = np.full(n, 10, np.int64)
         self._start, self._farthest = np.zeros(n), np.zeros(n)
         self._limits, self._threshold, self._goal = np.zeros((n, 2)), np.zeros(n), np.zeros(n)
+        self._joint = np.full(n, -1, np.int64)  # the grasped joint, -1 before a grasp
 
     def _observation(self, obs):
-        return {
-            "image": obs["image"],
-            "reference": obs["reference"],
-            "phase": self._phase.copy(),
-            "gripper_pixel": np.asarray(obs["gripper_pixel"], np.int64).copy(),
-        }
+        state = None
+        if self.obs_mode == "state":
+            state = {
+                "joints": self._vec.joint_positions(),
+                "reference_joints": [obs_modes.reference_joints(s) for s in self._vec.scenes],
+                "grasped_joint": self._joint.copy(),
+            }
+        return obs_modes.convert(self.obs_mode, obs, self._phase.copy(), obs["gripper_pixel"], state)
 
     def reset(self, *, seed=None, options=None):
         if seed is not None:
@@ -258,6 +267,7 @@ class UmpnetVectorEnv(VectorEnv):
         obs = self._vec.reset((options or {}).get("scenes"))
         n = self.num_envs
         self._phase[:], self._t[:], self._env_steps[:], self._done[:] = 0, 0, 0, False
+        self._joint[:] = -1
         # The budgets come with the next step's info; until then, the scenes'.
         self._budget[:] = [BUDGETS.get(s.get("category"), 10) for s in self._vec.scenes]
         info = {"success": np.zeros(n, bool), "elapsed_steps": np.zeros(n, np.int64)}
@@ -280,10 +290,12 @@ class UmpnetVectorEnv(VectorEnv):
 
         was_reset = kind == 1
         self._phase[was_reset], self._t[was_reset], self._env_steps[was_reset] = 0, 0, 0
+        self._joint[was_reset] = -1
         self._budget[:] = raw["budget"]
 
         grasp = kind == 2
         self._phase[grasp] = 1
+        self._joint[grasp] = raw["joint"][grasp]
         terminated[grasp] = ~raw["valid"][grasp]
         self._start[grasp], self._farthest[grasp] = raw["start"][grasp], 0.0
         self._limits[grasp], self._threshold[grasp] = raw["limits"][grasp], raw["threshold"][grasp]
