@@ -953,3 +953,55 @@ def test_partnet_folder_with_the_released_split_scores_the_held_out_instances(tm
     (tmp_path / "typo.json").write_text(json.dumps({"train": {"Microwav": {"test": ["102"]}}}))
     p = run("eval", "--partnet", str(root), "--split-file", str(tmp_path / "typo.json"), check=False)
     assert p.returncode == 2 and "Microwav" in p.stderr and "did you mean Microwave" in p.stderr, p.stderr
+
+
+def test_infer_session_keeps_a_robot_loops_episode_across_calls(tmp_path):
+    """`infer --session DIR`: the first call starts the episode (grasp and
+    first move), later calls take where the gripper is and whether the last
+    move moved the part; a move that moved nothing is not chosen again, a
+    move that moved lifts the bans; the same calls give the same moves; a
+    session refuses another model, camera or task by name."""
+    run("render", "--category", "Microwave", "--seed", "3", "--resolution", "96x128", "--out", str(tmp_path / "f"))
+    frame = ["--rgb", str(tmp_path / "f/color.png"), "--depth", str(tmp_path / "f/depth.npy"),
+             "--camera", str(tmp_path / "f/camera.json")]  # fmt: skip
+
+    def episode(session):
+        first = json.loads(run("--json", "infer", "--session", str(session), *frame).stdout)
+        assert first["session"]["step"] == 1 and first["direction"] is not None
+        gripper = ",".join(f"{v:.5f}" for v in first["point_in_world"])
+        second = json.loads(
+            run("--json", "infer", "--session", str(session), *frame, f"--gripper={gripper}", "--moved", "false").stdout
+        )
+        assert second["session"] == {"dir": str(session), "step": 2, "banned": 1}
+        # Within the ban's 20 degrees of the first move: not chosen again.
+        cos = sum(a * b for a, b in zip(first["direction"], second["direction"]))
+        assert cos < 0.94, cos
+        third = json.loads(
+            run("--json", "infer", "--session", str(session), *frame, f"--gripper={gripper}", "--moved", "true").stdout
+        )
+        assert third["session"]["banned"] == 0 and third["session"]["step"] == 3
+        return [first, second, third]
+
+    a, b = episode(tmp_path / "a"), episode(tmp_path / "b")
+    strip = [{k: v for k, v in o.items() if k != "session"} for o in a]
+    assert strip == [{k: v for k, v in o.items() if k != "session"} for o in b]
+    s = str(tmp_path / "a")
+    for extra, says in [
+        ([], "--grasp row,col or --gripper x,y,z"),
+        (
+            [
+                "--reference",
+                str(tmp_path / "f/color.png"),
+                "--reference-depth",
+                str(tmp_path / "f/depth.npy"),
+                "--grasp",
+                "10,10",
+            ],
+            "the session explores",
+        ),
+        (["--gripper", "0,0,-100"], "not in front of the camera"),
+    ]:
+        p = run("infer", "--session", s, *frame, *extra, check=False)
+        assert p.returncode == 2 and says in p.stderr, (extra, p.stderr)
+    p = run("infer", "--session", str(tmp_path / "new"), *frame, "--moved", "true", check=False)
+    assert p.returncode == 2 and "no session yet" in p.stderr, p.stderr

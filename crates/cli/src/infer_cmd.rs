@@ -61,6 +61,26 @@ pub struct InferArgs {
     /// Seed of the direction sampling (CEM).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// A robot loop's state between calls, kept in this folder: the first
+    /// call starts an episode (its frame becomes the exploration's
+    /// reference, its grasp is chosen); each later call decides the next
+    /// move with the episode's memory. See docs/cli.md.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["initial", "initial_depth", "previous"])]
+    pub session: Option<PathBuf>,
+    /// With --session: whether the last move moved the part (`true` or
+    /// `false`, as the robot saw it); a move that moved nothing is not tried
+    /// again until one does.
+    #[arg(long, requires = "session")]
+    pub moved: Option<bool>,
+    /// With --session, after the first call: where the gripper is now (world
+    /// x,y,z), projected into the frame; or give --grasp row,col.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        requires = "session"
+    )]
+    pub gripper: Vec<f32>,
 }
 
 /// Largest image or depth file `infer` reads (a 4K float64 depth is 70 MB).
@@ -409,11 +429,59 @@ impl Camera {
     }
 }
 
-#[expect(
-    clippy::too_many_lines,
-    reason = "infer's inputs read and checked in the order the help lists them"
-)]
-pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
+/// What a decision needs, read and checked: the policy, the frames at full
+/// and at the model's size, and the other frames (goal or first) if given.
+pub(crate) struct Inputs {
+    pub model: PathBuf,
+    pub policy: UmpnetPolicy,
+    pub full: OwnedFrame,
+    pub obs: ndarray::Array3<f32>,
+    pub reference: Option<ndarray::Array3<f32>>,
+    pub initial: Option<ndarray::Array3<f32>>,
+    pub grasp: Option<(usize, usize)>,
+    pub previous: Option<Vector3<f32>>,
+}
+
+impl Inputs {
+    /// Rows and columns of the full frame per model pixel.
+    pub fn scale(&self) -> (f32, f32) {
+        let (mh, mw) = self.policy.resolution();
+        (
+            self.full.height as f32 / mh as f32,
+            self.full.width as f32 / mw as f32,
+        )
+    }
+
+    /// A full-frame pixel at the model's size.
+    pub fn to_model(&self, (r, c): (usize, usize)) -> (usize, usize) {
+        let (mh, mw) = self.policy.resolution();
+        let (sy, sx) = self.scale();
+        (
+            (((r as f32 + 0.5) / sy) as usize).min(mh - 1),
+            (((c as f32 + 0.5) / sx) as usize).min(mw - 1),
+        )
+    }
+
+    /// A model pixel in the full frame.
+    pub fn to_full(&self, (r, c): (usize, usize)) -> (usize, usize) {
+        let (sy, sx) = self.scale();
+        (
+            (((r as f32 + 0.5) * sy) as usize).min(self.full.height.saturating_sub(1)),
+            (((c as f32 + 0.5) * sx) as usize).min(self.full.width.saturating_sub(1)),
+        )
+    }
+
+    /// Goal mode when a goal frame was given.
+    pub fn mode(&self) -> Mode {
+        if self.reference.is_some() {
+            Mode::Goal
+        } else {
+            Mode::Explore
+        }
+    }
+}
+
+pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
     let camera = Camera::from_args(a)?;
     let grasp = match a.grasp.as_slice() {
         [] => None,
@@ -498,50 +566,83 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     };
     let reference = other_frame(&a.reference, &a.reference_depth, "reference")?;
     let initial = other_frame(&a.initial, &a.initial_depth, "initial")?;
-    let (sy, sx) = (
-        full.height as f32 / mh as f32,
-        full.width as f32 / mw as f32,
-    );
-    let pixel_small = if let Some((r, c)) = grasp {
-        (
-            (((r as f32 + 0.5) / sy) as usize).min(mh - 1),
-            (((c as f32 + 0.5) / sx) as usize).min(mw - 1),
-        )
-    } else {
-        policy
-            .position(obs.view(), reference.as_ref().map(|r| r.view()))?
-            .pixel
+    Ok(Inputs {
+        model,
+        policy,
+        full,
+        obs,
+        reference,
+        initial,
+        grasp,
+        previous,
+    })
+}
+
+pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
+    let inputs = read_inputs(a)?;
+    if let Some(dir) = &a.session {
+        return crate::infer_session::step(dir, a, &inputs);
+    }
+    let pixel_small = match inputs.grasp {
+        Some(p) => inputs.to_model(p),
+        None => {
+            inputs
+                .policy
+                .position(
+                    inputs.obs.view(),
+                    inputs.reference.as_ref().map(|r| r.view()),
+                )?
+                .pixel
+        }
     };
-    let mode = if reference.is_some() {
-        Mode::Goal
-    } else {
-        Mode::Explore
-    };
-    let refv = reference.as_ref().or(initial.as_ref()).unwrap_or(&obs);
+    let reference = inputs
+        .reference
+        .as_ref()
+        .or(inputs.initial.as_ref())
+        .unwrap_or(&inputs.obs);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
+    let out = decide(
+        &inputs,
+        reference,
+        pixel_small,
+        &[],
+        inputs.previous,
+        &mut rng,
+    )?;
+    outln!("{out}");
+    Ok(())
+}
+
+/// One decision, as infer prints it (JSON): the grasp pixel in the full
+/// frame and its world point, the direction (None: stop) with its scores.
+pub(crate) fn decide(
+    inputs: &Inputs,
+    reference: &ndarray::Array3<f32>,
+    pixel_small: (usize, usize),
+    banned: &[Vector3<f32>],
+    previous: Option<Vector3<f32>>,
+    rng: &mut rand_chacha::ChaCha8Rng,
+) -> Result<serde_json::Value> {
+    let mode = inputs.mode();
     let input = DecisionInput {
-        observation: obs.view(),
-        reference: refv.view(),
+        observation: inputs.obs.view(),
+        reference: reference.view(),
         pixel: pixel_small,
-        banned: &[],
+        banned,
         previous,
         mode,
     };
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
-    let Some(r) = policy
-        .directions(std::slice::from_ref(&input), std::slice::from_mut(&mut rng))?
+    let model = &inputs.model;
+    let Some(r) = inputs
+        .policy
+        .directions(std::slice::from_ref(&input), std::slice::from_mut(rng))?
         .pop()
     else {
         bail!("{}: the policy returned no decision", model.display());
     };
-    let pixel_full = (
-        ((pixel_small.0 as f32 + 0.5) * sy) as usize,
-        ((pixel_small.1 as f32 + 0.5) * sx) as usize,
-    );
-    let point = CameraFrame::point_in_world(
-        &full.view(),
-        pixel_full.0.min(full.height.saturating_sub(1)),
-        pixel_full.1.min(full.width.saturating_sub(1)),
-    );
+    let full = &inputs.full;
+    let pixel_full = inputs.to_full(pixel_small);
+    let point = CameraFrame::point_in_world(&full.view(), pixel_full.0, pixel_full.1);
     let best = r.direction.and_then(|d| {
         r.candidates
             .iter()
@@ -558,7 +659,7 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
             model.display()
         );
     }
-    let out = serde_json::json!({
+    Ok(serde_json::json!({
         "pixel": [pixel_full.0, pixel_full.1],
         "point_in_world": point.map(|p| [p.x, p.y, p.z]),
         "mode": mode,
@@ -567,9 +668,7 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         "predicted_aot": best.map(|(_, s)| s.aot),
         "stop": r.direction.is_none(),
         "model": model,
-    });
-    outln!("{out}");
-    Ok(())
+    }))
 }
 
 #[cfg(test)]

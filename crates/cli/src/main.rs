@@ -23,6 +23,7 @@ mod episode_cmd;
 mod eval_cmd;
 mod images;
 mod infer_cmd;
+mod infer_session;
 mod objects_cmd;
 mod outdir;
 mod pictures;

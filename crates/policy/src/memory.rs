@@ -29,6 +29,12 @@ impl EpisodeMemory {
         self.previous = Some(direction);
     }
 
+    /// A memory as saved elsewhere (`banned` and `previous` as they were):
+    /// a robot loop's session between calls.
+    pub fn from_parts(banned: Vec<Vector3<f32>>, previous: Option<Vector3<f32>>) -> Self {
+        Self { banned, previous }
+    }
+
     /// The directions not to choose again.
     pub fn banned(&self) -> &[Vector3<f32>] {
         &self.banned
