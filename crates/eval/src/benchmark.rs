@@ -25,6 +25,7 @@ use umpnet_sim::scene::{ObjectSource, Scene, Task, sample_scene};
 /// Test instances drawn per category (the paper has about ten per category).
 pub const INSTANCES_PER_CATEGORY: u32 = 10;
 
+/// Makes a fresh policy for each worker thread.
 pub type PolicyFactory = Arc<dyn Fn() -> Result<Box<dyn Policy>> + Send + Sync>;
 
 fn mix(parts: &[u64]) -> u64 {
@@ -47,7 +48,9 @@ fn mix(parts: &[u64]) -> u64 {
 /// `NAME/mobility.urdf`, placed by its `object_meta_info.json`).
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Row {
+    /// A category's generated test instances.
     Category(Category),
+    /// One object file (`eval --objects`).
     Object(ObjectRow),
     /// A category's row on object files instead of generated instances
     /// (`eval --partnet`: a local PartNet-Mobility folder).
@@ -59,18 +62,23 @@ pub enum Row {
 /// category's row scene by scene.
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct InstanceRow {
+    /// The category the row is named after.
     pub category: Category,
+    /// Its instances; scene `k` uses instance `k % len`.
     pub instances: Vec<crate::partnet::Instance>,
 }
 
 /// An object file scored as its own row, named after its folder.
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct ObjectRow {
+    /// The row's name: the object's folder.
     pub name: String,
+    /// The object's URDF.
     pub urdf: PathBuf,
 }
 
 impl Row {
+    /// The row's name in tables.
     pub fn name(&self) -> &str {
         match self {
             Row::Category(c) => c.name(),
@@ -79,6 +87,7 @@ impl Row {
         }
     }
 
+    /// The category of a category row (generated or PartNet).
     pub fn category(&self) -> Option<Category> {
         match self {
             Row::Category(c) => Some(*c),
@@ -179,6 +188,7 @@ pub fn row_scene(
     }
 }
 
+/// The seed of scene `k` of a category's row.
 pub fn scene_seed(seed: u64, task: Task, category: Category, k: u32) -> u64 {
     let c = Category::ALL
         .iter()
@@ -261,23 +271,31 @@ pub fn sample_visible_scene(
     last.ok_or_else(|| EvalError::Episode("no scene sampled".into()))
 }
 
+/// What one benchmark run evaluates, and how.
 #[derive(Clone, Debug)]
 pub struct BenchConfig {
+    /// Exploration or goal.
     pub task: Task,
     /// The table's rows: categories, object files, or both.
     pub rows: Vec<Row>,
+    /// Scenes per row.
     pub episodes_per_category: u32,
+    /// The run's seed: scenes and policies' seeds derive from it.
     pub seed: u64,
+    /// Seed of the generated objects.
     pub dataset_seed: u64,
     /// The camera of every policy not in `policy_cameras`.
     pub camera: Camera,
     /// Policies that see their own camera (a learned package sees its input
     /// resolution); the scenes are the same for every policy.
     pub policy_cameras: std::collections::BTreeMap<String, Camera>,
+    /// The renderer every episode uses.
     pub renderer: RendererKind,
     /// Step budget override (default: the protocol's).
     pub steps: Option<usize>,
+    /// The physics every episode runs.
     pub physics: PhysicsProfile,
+    /// How episodes end and are scored.
     pub protocol: Protocol,
     /// Which share of the scenes to run (all of them by default).
     pub shard: Shard,
@@ -290,13 +308,17 @@ pub struct BenchConfig {
 /// benchmark, each scene exactly once.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Shard {
+    /// Which shard, from 1.
     pub index: u32,
+    /// How many shards.
     pub count: u32,
 }
 
 impl Shard {
+    /// The whole benchmark.
     pub const ALL: Shard = Shard { index: 1, count: 1 };
 
+    /// Shard `index` of `count`, or an error unless 1 <= index <= count.
     pub fn new(index: u32, count: u32) -> Result<Shard> {
         if count == 0 || index == 0 || index > count {
             return Err(EvalError::Episode(format!(
@@ -306,6 +328,7 @@ impl Shard {
         Ok(Shard { index, count })
     }
 
+    /// Whether this shard is the whole benchmark.
     pub fn is_all(self) -> bool {
         self.count == 1
     }
@@ -388,15 +411,20 @@ impl BenchConfig {
     }
 }
 
+/// One line of episodes.jsonl: a policy's episode on one scene of a row.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct EpisodeOutcome {
     /// The row: a category, or an object file's name (one of the two).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub category: Option<Category>,
+    /// The object row's name.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub object: Option<String>,
+    /// The scene's index within its row.
     pub index: u32,
+    /// The policy's name.
     pub policy: String,
+    /// The episode, unless it failed.
     pub episode: Option<Episode>,
     /// Why the episode failed (with its scene), if it did.
     pub error: Option<String>,
@@ -545,14 +573,18 @@ pub fn wilson(successes: usize, n: usize) -> (f64, f64) {
 /// grow with the number of values.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Running {
+    /// Values pushed.
     pub n: usize,
+    /// Their sum, in push order.
     pub sum: f64,
     welford_mean: f64,
     m2: f64,
+    /// Values above 0.5 (success rates).
     pub successes: usize,
 }
 
 impl Running {
+    /// Adds one value.
     pub fn push(&mut self, v: f64) {
         self.n += 1;
         self.sum += v;
@@ -564,6 +596,7 @@ impl Running {
         }
     }
 
+    /// The mean (NaN before any value).
     pub fn mean(&self) -> f64 {
         if self.n == 0 {
             f64::NAN

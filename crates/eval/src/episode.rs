@@ -12,31 +12,42 @@ use umpnet_sim::env::{DELTA, Pick, SimEnv};
 use umpnet_sim::render::{Frame, Renderer};
 use umpnet_sim::scene::{Scene, Task};
 
+/// One direction action of an episode.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Step {
+    /// The direction and what the simulator measured.
     pub record: StepRecord,
     /// Gripper position when the action started.
     pub gripper_in_world: [f32; 3],
+    /// What the policy considered, if it says.
     pub candidates: Option<Candidates>,
 }
 
+/// One episode: what was grasped, each step, and the metrics.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Episode {
+    /// The policy's name.
     pub policy: String,
+    /// The scene it ran on.
     pub scene: Scene,
     /// The grasped pixel (row, col).
     pub pixel: (u32, u32),
     /// The position landed on a valid link (for the goal task: the goal joint's).
     pub valid_position: bool,
+    /// The joint the grasp moves, if any.
     pub joint: Option<usize>,
+    /// The direction actions, in order.
     pub steps: Vec<Step>,
     /// The policy chose to stop.
     pub stopped_early: bool,
     /// The protocol ended the episode (paper: a limit reached in exploration,
     /// the goal reached in the goal task).
     pub ended_by_protocol: bool,
+    /// Direction actions allowed.
     pub budget: usize,
+    /// The protocol that ended and scored it.
     pub protocol: Protocol,
+    /// Its scores.
     pub metrics: Metrics,
 }
 
@@ -44,21 +55,29 @@ pub struct Episode {
 /// and the protocol that ends and scores it.
 #[derive(Clone, Copy, Debug)]
 pub struct EpisodeConfig {
+    /// Direction actions allowed.
     pub budget: usize,
+    /// The policy's seed for the episode.
     pub seed: u64,
+    /// Ends and scores the episode.
     pub protocol: Protocol,
 }
 
+/// An episode's scores under its protocol (the paper's tables' metrics).
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Metrics {
     /// Exploration: unique states after each step (length = budget), as the
     /// protocol counts them.
     pub unique_states: Vec<f32>,
+    /// Exploration: unique states over the steps taken.
     pub novel_state_ratio: f32,
+    /// Exploration: the mean joint change per step.
     pub single_action_effect: f32,
     /// Goal: normalised distance after each step (length = budget).
     pub normalized_distance_curve: Vec<f32>,
+    /// Goal: the final distance to the goal over the initial one.
     pub normalized_distance: f32,
+    /// Goal: the joint ended within the protocol's threshold of the goal.
     pub success: bool,
     /// Exploration: the grasped joint's axis inferred from the moving steps
     /// (the paper's structure inference), against the true axis. None when
@@ -113,9 +132,13 @@ pub fn axis_error(steps: &[Step], prismatic: bool, true_axis: [f32; 3]) -> Optio
 pub struct HookFrame<'a> {
     /// 0 after the grasp, t after the t-th direction action.
     pub t: usize,
+    /// The frame after the action.
     pub frame: &'a Frame,
+    /// The direction step it follows (None after the grasp).
     pub step: Option<&'a Step>,
+    /// The grasped pixel (row, col).
     pub pixel: (u32, u32),
+    /// The environment, for recordings of its state.
     pub env: &'a SimEnv,
 }
 
@@ -279,10 +302,22 @@ pub enum Scoring {
     Missed(Task),
     /// Exploration of the grasped joint from `start`; the paper's walk divides
     /// prismatic moves by the object's `scale` (1 for revolute joints).
-    Exploration { start: f32, scale: f32 },
+    Exploration {
+        /// The joint's value at the grasp.
+        start: f32,
+        /// The object's scale.
+        scale: f32,
+    },
     /// The goal joint from `init` toward `target`; `now` is its value after the
     /// episode (the goal joint need not be the grasped one).
-    Goal { init: f32, target: f32, now: f32 },
+    Goal {
+        /// The goal joint's value at the start.
+        init: f32,
+        /// Its value in the goal state.
+        target: f32,
+        /// Its value after the episode.
+        now: f32,
+    },
 }
 
 /// An episode's metrics from its steps' (joint value after, |Δ joint|) under

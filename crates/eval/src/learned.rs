@@ -34,6 +34,7 @@ pub fn camera_frame(f: &Frame) -> CameraFrame<'_> {
     }
 }
 
+/// The 10-channel observation of a rendered frame, as the runtime builds it from a camera's.
 pub fn observation_tensor(f: &Frame) -> Result<Array3<f32>> {
     Ok(build_observation(&camera_frame(f))?)
 }
@@ -51,6 +52,7 @@ pub fn project_pixel(f: &Frame, p: Vec3) -> (usize, usize) {
     (row as usize, col as usize)
 }
 
+/// A model package behind the [`Policy`] trait: it sees images and its own gripper only.
 pub struct LearnedPolicy {
     name: String,
     policy: UmpnetPolicy,
@@ -60,6 +62,7 @@ pub struct LearnedPolicy {
 }
 
 impl LearnedPolicy {
+    /// The package's policy, named `name` in tables.
     pub fn new(name: &str, package: Arc<ModelPackage>) -> Self {
         Self {
             name: name.into(),

@@ -18,7 +18,9 @@ use umpnet_sim::objects::Category;
 /// One object of the dataset: its id and its URDF.
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Instance {
+    /// The dataset's id (its folder's name).
     pub id: String,
+    /// Its mobility.urdf.
     pub urdf: PathBuf,
 }
 

@@ -7,7 +7,9 @@ use umpnet_sim::render::Frame;
 /// What a policy sees at each step: the frame and, as the paper's reference
 /// input, the initial observation (exploration) or the goal image (goal task).
 pub struct Observation<'a> {
+    /// The current frame.
     pub frame: &'a Frame,
+    /// The reference frame: the first (exploration) or the goal.
     pub reference: &'a Frame,
     /// Where the robot's own gripper is (proprioception), once it holds something.
     pub gripper_in_world: Option<Vec3>,
@@ -17,8 +19,11 @@ pub struct Observation<'a> {
 /// predicted distance and AoT.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct Candidates {
+    /// Candidate directions (world frame).
     pub directions: Vec<[f32; 3]>,
+    /// Predicted joint change of each.
     pub distance: Vec<f32>,
+    /// Predicted Arrow of Time of each: -1, 0 or +1.
     pub aot: Vec<i8>,
 }
 
@@ -38,9 +43,13 @@ impl Candidates {
     }
 }
 
+/// A policy's choice for the next direction action.
 pub enum Decision {
+    /// Move the gripper 0.18 m along `direction` (world frame, unit).
     Move {
+        /// The direction (world frame, unit).
         direction: Vec3,
+        /// What the policy considered, for pictures.
         candidates: Option<Candidates>,
     },
     /// The policy is done (goal task: no direction is predicted to move toward the goal).
@@ -50,17 +59,23 @@ pub enum Decision {
 /// One executed step, as a policy sees the history.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct StepRecord {
+    /// The executed direction (world frame, unit).
     pub direction: [f32; 3],
+    /// What the simulator measured.
     pub labels: StepLabels,
 }
 
+/// A policy the benchmark runs: scripted, learned, or a caller's.
 pub trait Policy: Send {
+    /// Its name in tables.
     fn name(&self) -> String;
     /// Called at the start of each episode with a seed derived from the scene.
     fn reset(&mut self, seed: u64);
     /// The pixel (row, col) to grasp. Scripted policies may read the simulator
     /// through `env`; learned ones must use only `obs`.
     fn position(&mut self, obs: &Observation<'_>, env: &SimEnv) -> Result<(u32, u32)>;
+    /// The next direction action, or stop; `history` holds the episode's
+    /// steps so far. Learned policies must use only `obs` and `history`.
     fn direction(
         &mut self,
         obs: &Observation<'_>,

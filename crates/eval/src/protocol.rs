@@ -34,6 +34,7 @@ pub enum Protocol {
 }
 
 impl Protocol {
+    /// `paper` or `strict`, as on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Protocol::Paper => "paper",

@@ -14,6 +14,7 @@ use umpnet_sim::math::Vec3;
 use umpnet_sim::render::{SEG_OBJECT_BASE, Segment};
 use umpnet_sim::scene::Task;
 
+/// A direction drawn uniformly from the unit sphere.
 pub fn uniform_direction(rng: &mut impl Rng) -> Vec3 {
     loop {
         let v = Vec3::new(

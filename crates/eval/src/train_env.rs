@@ -23,20 +23,30 @@ use umpnet_sim::scene::{ObjectSource, Scene, Task};
 /// Instances per category a training environment draws from.
 pub const TRAIN_INSTANCES: u32 = 16;
 
+/// What scenes a [`TrainEnv`] samples.
 #[derive(Clone, Debug)]
 pub struct EnvConfig {
+    /// Categories to draw from.
     pub categories: Vec<Category>,
+    /// Training categories' instances: train or held-out test.
     pub split: InstanceSplit,
+    /// Exploration or goal.
     pub task: Task,
+    /// Observation (height, width).
     pub resolution: (u32, u32),
+    /// The renderer.
     pub renderer: RendererKind,
+    /// Seed of the generated objects.
     pub dataset_seed: u64,
     /// A URDF file (and where it sits) instead of generated instances.
     pub object: Option<ObjectSource>,
+    /// The physics profile.
     pub physics: PhysicsProfile,
 }
 
 impl EnvConfig {
+    /// The training categories (and with `Test` the test categories too), at
+    /// 96x128, with the auto renderer and the reference physics.
     pub fn new(task: Task, split: InstanceSplit) -> Self {
         let categories = Category::ALL
             .iter()
@@ -59,9 +69,13 @@ impl EnvConfig {
 /// One observation as arrays.
 #[derive(Clone, Debug)]
 pub struct EnvObservation {
+    /// H x W x 10: xyz, rgb, normal, depth.
     pub image: Array3<f32>,
+    /// Per pixel: the segment id (render::Segment).
     pub segmentation: Vec<u32>,
+    /// fx, fy, cx, cy.
     pub intrinsics: [f32; 4],
+    /// Camera pose, row-major.
     pub world_from_camera: [[f32; 4]; 4],
     /// Where the gripper is in the image (row, col), once it holds something.
     pub gripper_pixel: Option<(usize, usize)>,
@@ -71,27 +85,40 @@ pub struct EnvObservation {
 /// caller had written into its own buffers ([`TrainEnv::observe_into`]).
 #[derive(Clone, Copy, Debug)]
 pub struct ObsMeta {
+    /// fx, fy, cx, cy.
     pub intrinsics: [f32; 4],
+    /// Camera pose, row-major.
     pub world_from_camera: [[f32; 4]; 4],
+    /// Where the gripper is in the image, once it holds something.
     pub gripper_pixel: Option<(usize, usize)>,
 }
 
+/// What a position action (a grasp at a pixel) did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PositionInfo {
+    /// It holds a link that a movable joint moves (in the goal task: the goal joint).
     pub valid: bool,
+    /// The link under the pixel.
     pub link: Option<usize>,
+    /// The joint that moves it.
     pub joint: Option<usize>,
+    /// The grasped point.
     pub point_in_world: Option<[f32; 3]>,
     /// The grasped joint's limits and the paper protocol's closeness
     /// threshold for it (see `protocol::threshold`).
     pub limits: Option<[f32; 2]>,
+    /// The protocol's threshold for that joint.
     pub threshold: Option<f32>,
 }
 
+/// A scripted policy's next action, for the Python bindings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ScriptedAction {
+    /// Grasp at (row, col).
     Pixel(u32, u32),
+    /// Move along a direction (world frame).
     Direction([f32; 3]),
+    /// Stop the episode.
     Stop,
 }
 
@@ -117,6 +144,7 @@ pub fn render_pending(envs: &mut [TrainEnv]) -> Result<()> {
     Ok(())
 }
 
+/// One environment for training and the Python bindings: scenes sampled from its seed, observations as arrays.
 pub struct TrainEnv {
     cfg: EnvConfig,
     rng: ChaCha8Rng,
@@ -130,6 +158,7 @@ pub struct TrainEnv {
 }
 
 impl TrainEnv {
+    /// An environment drawing scenes from `seed`.
     pub fn new(cfg: EnvConfig, seed: u64) -> Result<Self> {
         if cfg.categories.is_empty() && cfg.object.is_none() {
             return Err(EvalError::Episode("no categories to sample from".into()));
@@ -149,6 +178,7 @@ impl TrainEnv {
         })
     }
 
+    /// Its configuration.
     pub fn config(&self) -> &EnvConfig {
         &self.cfg
     }
@@ -326,6 +356,7 @@ impl TrainEnv {
         Ok(())
     }
 
+    /// The current scene, after a reset.
     pub fn scene(&self) -> Option<&Scene> {
         self.env.as_ref().map(|e| e.scene())
     }
@@ -335,6 +366,7 @@ impl TrainEnv {
         self.reference.as_ref()
     }
 
+    /// The object's joint values now.
     pub fn joint_positions(&self) -> Vec<f32> {
         self.env
             .as_ref()
@@ -342,6 +374,7 @@ impl TrainEnv {
             .unwrap_or_default()
     }
 
+    /// The joint the gripper moves, if it holds something.
     pub fn grasped_joint(&self) -> Option<usize> {
         self.env.as_ref().and_then(|e| e.grasped_joint())
     }
@@ -362,6 +395,7 @@ impl TrainEnv {
         self.observe(self.current_frame()?)
     }
 
+    /// Grasps at a pixel; the observation after it.
     pub fn step_position(&mut self, row: u32, col: u32) -> Result<(EnvObservation, PositionInfo)> {
         let info = self.step_position_in_place(row, col)?;
         Ok((self.reset_observation()?, info))
@@ -429,6 +463,7 @@ impl TrainEnv {
         Ok(env.probe_directions(&dirs)?)
     }
 
+    /// Moves 0.18 m along a direction; the observation after it and the labels.
     pub fn step_direction(&mut self, direction: [f32; 3]) -> Result<(EnvObservation, StepLabels)> {
         let labels = self.step_direction_in_place(direction)?;
         Ok((self.reset_observation()?, labels))
