@@ -111,11 +111,17 @@ lint-rerun: install
 check:
 	cargo fmt --all --check
 	cargo clippy --release --workspace --all-targets $(CARGO_FEATURES) -- -D warnings
+	$(DOC)
 	cargo test --release --workspace --lib --bins $(CARGO_FEATURES)
+
+# The library crates' reference: every public item documented
+# (missing_docs), every intra-doc link resolved.
+DOC = RUSTDOCFLAGS="-D warnings" cargo doc --no-deps -p umpnet-sim -p umpnet-policy -p umpnet-eval
 
 lint: install
 	cargo fmt --all --check
 	cargo clippy --release --workspace --all-targets $(CARGO_FEATURES) -- -D warnings
+	$(DOC)
 	.venv/bin/ruff check tests train_py crates/py scripts benches
 	.venv/bin/ruff format --check tests train_py crates/py scripts benches
 	# One feature set per shared crate across test, build and maturin (crates/workspace-hack).

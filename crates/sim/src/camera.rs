@@ -1,24 +1,38 @@
 //! The pinhole camera of the protocol, OpenCV convention (x right, y down, z forward).
 use crate::math::{Mat3, Pose3, Quat, Vec3};
 
+/// A camera looking from `eye` at `target`: the image size, the field of view
+/// and the depth range.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Camera {
+    /// Columns.
     pub width: u32,
+    /// Rows.
     pub height: u32,
+    /// Horizontal field of view (degrees).
     pub hfov_deg: f32,
+    /// Where the camera is (world frame, m).
     pub eye: [f32; 3],
+    /// What it looks at.
     pub target: [f32; 3],
+    /// The world direction that is up in the image.
     pub up: [f32; 3],
+    /// Nearest depth drawn (m).
     pub near: f32,
+    /// Farthest depth drawn (m).
     pub far: f32,
 }
 
 /// fx, fy, cx, cy in pixels (pixel centres at integer + 0.5).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Intrinsics {
+    /// Focal length in pixels, horizontally.
     pub fx: f32,
+    /// Focal length in pixels, vertically.
     pub fy: f32,
+    /// Principal point, column.
     pub cx: f32,
+    /// Principal point, row.
     pub cy: f32,
 }
 
@@ -37,6 +51,7 @@ impl Camera {
         }
     }
 
+    /// Its pinhole intrinsics (square pixels, principal point at the centre).
     pub fn intrinsics(&self) -> Intrinsics {
         let fx = self.width as f32 / 2.0 / (self.hfov_deg.to_radians() / 2.0).tan();
         Intrinsics {

@@ -22,9 +22,13 @@ pub const OBJECT_ID: u32 = 1;
 pub enum Pick {
     /// On a link that a movable joint moves.
     Movable {
+        /// The surface point under the pixel.
         point_in_world: Vec3,
+        /// The surface normal there, facing the camera.
         normal_in_world: Vec3,
+        /// The link hit.
         link: usize,
+        /// The joint that moves it.
         joint: usize,
     },
     /// Background, floor, gripper or a fixed link: nothing to grasp.
@@ -40,6 +44,8 @@ struct Grasp {
     j0: f32,
 }
 
+/// One scene: the object on its physics, a camera and a renderer, and the
+/// paper's two actions (grasp at a pixel, move along a direction).
 pub struct SimEnv {
     scene: Scene,
     model: Arc<ObjectModel>,
@@ -50,6 +56,7 @@ pub struct SimEnv {
 }
 
 impl SimEnv {
+    /// The scene loaded, checked and posed, its meshes given to `renderer`.
     pub fn new(scene: Scene, camera: Camera, mut renderer: Box<dyn Renderer>) -> Result<Self> {
         let model = Arc::new(scene.load_model()?);
         scene.validate(&model)?;
@@ -95,24 +102,31 @@ impl SimEnv {
         Ok(())
     }
 
+    /// The scene.
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
+    /// The object, placed and scaled.
     pub fn model(&self) -> &Arc<ObjectModel> {
         &self.model
     }
+    /// Its physics.
     pub fn articulation(&self) -> &Articulation {
         &self.art
     }
+    /// The camera.
     pub fn camera(&self) -> &Camera {
         &self.camera
     }
+    /// Which renderer draws (`wgpu/...` or `cpu`).
     pub fn renderer_name(&self) -> String {
         self.renderer.name()
     }
+    /// The joint the grasp moves, if the gripper holds something.
     pub fn grasped_joint(&self) -> Option<usize> {
         self.grasp.as_ref().map(|g| g.joint)
     }
+    /// The link the gripper holds.
     pub fn grasped_link(&self) -> Option<usize> {
         self.grasp.as_ref().map(|g| g.link)
     }
@@ -130,6 +144,7 @@ impl SimEnv {
     pub fn grasp_start_value(&self) -> Option<f32> {
         self.grasp.as_ref().map(|g| g.j0)
     }
+    /// Every joint's value now.
     pub fn joint_positions(&self) -> Vec<f32> {
         self.art.joint_positions()
     }

@@ -13,7 +13,9 @@ use crate::render::{Frame, Segment};
 /// Per-pixel articulation labels, row-major like the frame they label.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ArticulationFields {
+    /// Columns.
     pub width: u32,
+    /// Rows.
     pub height: u32,
     /// The unit direction in which the pixel's surface point moves when the
     /// joint that moves its part opens (its value grows), in the world frame:

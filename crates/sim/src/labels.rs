@@ -19,15 +19,21 @@ const SIGN_DEADBAND: f32 = 0.02;
 /// Labels of one executed direction.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StepLabels {
+    /// The grasped joint's value before the move.
     pub joint_before: f32,
+    /// Its value after.
     pub joint_after: f32,
     /// |j_t - j_{t-1}|
     pub r_dist: f32,
     /// Arrow of Time: 0 (no effective change), +1 (away from the start), -1 (back).
     pub aot: i8,
+    /// The joint changed by more than the protocol's threshold.
     pub moved: bool,
+    /// The joint is now at a limit.
     pub reached_limit: bool,
+    /// The joint is back where it was grasped.
     pub back_at_start: bool,
+    /// `ideal` only: the suction let go.
     pub suction_lost: bool,
     /// The reference training code's labels for the same step.
     #[serde(default)]

@@ -3,6 +3,8 @@
 //! URDF (PartNet-Mobility or generated) -> [`model::ObjectModel`] ->
 //! [`physics::Articulation`] (the suction gripper on the `reference` solver,
 //! by default, or on a rapier3d multibody with the `ideal` profile).
+#![warn(missing_docs)]
+/// [`SimError`]: what can go wrong, naming the file, element or value.
 pub mod error;
 pub mod fsio;
 pub mod math;

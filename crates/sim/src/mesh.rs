@@ -19,11 +19,14 @@ pub const MAX_TOTAL_TRIANGLES: usize = 2_000_000;
 /// An indexed triangle mesh in some frame named by its owner.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriMesh {
+    /// Vertex positions.
     pub positions: Vec<Vec3>,
+    /// Triangles as indices into `positions`, counter-clockwise seen from outside.
     pub triangles: Vec<[u32; 3]>,
 }
 
 impl TriMesh {
+    /// Adds `other`'s triangles to this mesh (same frame).
     pub fn append(&mut self, other: &TriMesh) {
         let base = self.positions.len() as u32;
         self.positions.extend_from_slice(&other.positions);
@@ -35,6 +38,7 @@ impl TriMesh {
         );
     }
 
+    /// The mesh with every vertex moved by `pose`.
     pub fn transformed(&self, pose: &Pose3) -> TriMesh {
         TriMesh {
             positions: self
@@ -46,6 +50,7 @@ impl TriMesh {
         }
     }
 
+    /// The mesh scaled per axis.
     pub fn scaled(&self, scale: Vec3) -> TriMesh {
         TriMesh {
             positions: self.positions.iter().map(|p| *p * scale).collect(),
@@ -233,6 +238,7 @@ impl TriMesh {
         None
     }
 
+    /// A Wavefront OBJ's triangles (polygons fanned), errors naming `path` and the line.
     pub fn parse_obj(text: &str, path: &Path) -> Result<TriMesh> {
         let err = |line: usize, what: String| SimError::Mesh {
             file: path.to_path_buf(),
@@ -325,6 +331,7 @@ impl TriMesh {
         Ok(mesh)
     }
 
+    /// The mesh as Wavefront OBJ text.
     pub fn to_obj(&self) -> String {
         let mut s = String::with_capacity(self.positions.len() * 32 + self.triangles.len() * 16);
         for p in &self.positions {

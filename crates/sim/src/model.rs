@@ -8,36 +8,50 @@ use crate::math::{Mat3, Pose3, Quat, Vec3};
 use crate::mesh::TriMesh;
 use std::path::PathBuf;
 
+/// A URDF joint's type (floating and planar joints are refused by the loader).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum JointKind {
+    /// No motion.
     Fixed,
+    /// A hinge with limits.
     Revolute,
+    /// A hinge without limits.
     Continuous,
+    /// A slide with limits.
     Prismatic,
 }
 
 impl JointKind {
+    /// Anything but fixed.
     pub fn is_movable(self) -> bool {
         self != JointKind::Fixed
     }
+    /// A slide (metres), not a hinge (radians).
     pub fn is_prismatic(self) -> bool {
         self == JointKind::Prismatic
     }
 }
 
+/// One `<visual>` of a link.
 #[derive(Clone, Debug)]
 pub struct VisualModel {
     /// Mesh in the link frame (origin and scale applied).
     pub mesh_in_link: TriMesh,
+    /// Linear RGB in [0, 1] (the material's, the MTL's, or white).
     pub color: [f32; 3],
 }
 
+/// One `<link>`.
 #[derive(Clone, Debug)]
 pub struct LinkModel {
+    /// Its name in the file.
     pub name: String,
+    /// What is drawn.
     pub visuals: Vec<VisualModel>,
+    /// Mass (kg).
     pub mass: f32,
+    /// Centre of mass in the link frame.
     pub com_in_link: Vec3,
     /// Inertia tensor about the centre of mass, in link axes.
     pub inertia_in_link: Mat3,
@@ -45,11 +59,16 @@ pub struct LinkModel {
     pub inertial_derived: bool,
 }
 
+/// One `<joint>`.
 #[derive(Clone, Debug)]
 pub struct JointModel {
+    /// Its name in the file.
     pub name: String,
+    /// Its type.
     pub kind: JointKind,
+    /// The parent link's index.
     pub parent: usize,
+    /// The child link's index.
     pub child: usize,
     /// Joint frame (= child frame at joint value 0) in the parent link frame.
     pub parent_from_joint: Pose3,
@@ -57,8 +76,11 @@ pub struct JointModel {
     pub axis_in_joint: Vec3,
     /// Limits; continuous joints have (-inf, inf).
     pub lower: f32,
+    /// Upper limit (rad or m).
     pub upper: f32,
+    /// `<dynamics damping>`.
     pub damping: f32,
+    /// `<dynamics friction>`.
     pub friction: f32,
 }
 
@@ -78,11 +100,15 @@ pub const JOINT_LIMIT_SLACK: f32 = 0.01;
 /// A loaded, validated articulated object: a tree of links rooted at `root`.
 #[derive(Clone, Debug)]
 pub struct ObjectModel {
+    /// The file it was read from.
     pub source: PathBuf,
+    /// The robot's name.
     pub name: String,
+    /// Its links.
     pub links: Vec<LinkModel>,
     /// Joints ordered so that every parent link appears before its child.
     pub joints: Vec<JointModel>,
+    /// The root link's index.
     pub root: usize,
 }
 
@@ -156,12 +182,14 @@ impl ObjectModel {
         Ok(())
     }
 
+    /// The joints that move, with their indices.
     pub fn movable_joints(&self) -> impl Iterator<Item = (usize, &JointModel)> {
         self.joints
             .iter()
             .enumerate()
             .filter(|(_, j)| j.kind.is_movable())
     }
+    /// The index of the joint called `name`.
     pub fn joint_by_name(&self, name: &str) -> Option<usize> {
         self.joints.iter().position(|j| j.name == name)
     }
@@ -196,10 +224,12 @@ impl Default for ObjectPose {
 }
 
 impl ObjectPose {
+    /// As the file is: no rotation, lift or scale.
     pub fn is_identity(&self) -> bool {
         *self == Self::default()
     }
 
+    /// A unit quaternion, a lift within the simulator's extent, a scale in (0, 1000].
     pub fn validate(&self) -> Result<()> {
         let norm = Quat::from_array(self.orientation).length();
         if !(self.orientation.iter().all(|v| v.is_finite()) && (norm - 1.0).abs() <= 0.01) {

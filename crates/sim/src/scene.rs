@@ -11,10 +11,13 @@ use crate::urdf::{MAX_COORDINATE, load_urdf};
 use rand::Rng;
 use std::path::PathBuf;
 
+/// The paper's two tasks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Task {
+    /// Reach as many new states as possible.
     Exploration,
+    /// Reach the state of a goal image.
     Goal,
 }
 
@@ -31,17 +34,22 @@ impl std::str::FromStr for Task {
     }
 }
 
+/// Where a scene's object comes from.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase")]
 pub enum ObjectSource {
     /// A procedurally generated instance, made again from its seed.
     Generated {
+        /// Its category.
         category: Category,
+        /// Its instance index.
         index: u32,
+        /// The generated dataset's seed.
         dataset_seed: u64,
     },
     /// A URDF file on disk (PartNet-Mobility or generated).
     File {
+        /// The URDF.
         path: PathBuf,
         /// Where the file's object sits, given by the user (`--scale`,
         /// `--pose`); absent: from `object_meta_info.json` beside the file.
@@ -118,6 +126,7 @@ impl ObjectSource {
     }
 }
 
+/// A goal task's goal: which joint must move, and to what state.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GoalSpec {
     /// The joint that must move (index into the model's joints).
@@ -126,16 +135,23 @@ pub struct GoalSpec {
     pub joints: Vec<f32>,
 }
 
+/// One scene of the benchmark: an object, where it stands, its joints and,
+/// in the goal task, the goal. Its JSON is the scene file format.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Scene {
+    /// Exploration or goal.
     pub task: Task,
+    /// The object's category (None for a file scored as its own row).
     pub category: Option<Category>,
+    /// The object.
     pub object: ObjectSource,
     /// Base position on the floor plane and yaw (rad).
     pub base_xy: [f32; 2],
+    /// Yaw of the base about the vertical (rad).
     pub base_yaw: f32,
     /// Initial joint values, one per model joint (fixed joints 0).
     pub joints: Vec<f32>,
+    /// The goal, in the goal task.
     pub goal: Option<GoalSpec>,
     /// The physics the scene runs under (absent in older scene files: `reference`).
     #[serde(default)]
@@ -175,6 +191,8 @@ fn joint_lever(model: &ObjectModel, joint: usize) -> f32 {
 }
 
 impl Scene {
+    /// Where the object's base stands: on the floor at `base_xy`, turned by
+    /// `base_yaw` after its pose's orientation, lifted by its offset.
     pub fn world_from_base(&self) -> Pose3 {
         let p = &self.pose;
         Pose3::from_parts(
@@ -189,10 +207,12 @@ impl Scene {
         self.object.load()?.scaled(self.pose.scale)
     }
 
+    /// The scene as JSON (the scene file format).
     pub fn to_json(&self) -> String {
         serde_json::to_string(self).unwrap_or_default()
     }
 
+    /// A scene from its JSON; an error names what is wrong.
     pub fn from_json(text: &str) -> Result<Scene> {
         serde_json::from_str(text).map_err(|e| SimError::InvalidScene(format!("scene JSON: {e}")))
     }

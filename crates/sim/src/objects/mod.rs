@@ -16,9 +16,12 @@ macro_rules! categories {
     ($($name:ident = $steps:expr, $train:expr;)*) => {
         /// The paper's object categories (12 for training, 10 held out).
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+        #[expect(missing_docs, reason = "each variant is the category it names")]
         pub enum Category { $($name),* }
         impl Category {
+            /// Every category: the training ones, then the test ones.
             pub const ALL: &'static [Category] = &[$(Category::$name),*];
+            /// The paper's name, e.g. `StorageFurniture`.
             pub fn name(self) -> &'static str {
                 match self { $(Category::$name => stringify!($name)),* }
             }
@@ -126,7 +129,9 @@ fn edit_distance(a: &str, b: &str) -> usize {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum InstanceSplit {
+    /// Instances trained on.
     Train,
+    /// Held-out instances (every instance of a test category).
     Test,
 }
 
@@ -151,9 +156,13 @@ pub fn nth_instance(category: Category, split: InstanceSplit, k: u32) -> u32 {
 
 /// A generated object: URDF text plus its meshes, not yet on disk.
 pub struct GeneratedObject {
+    /// Its category.
     pub category: Category,
+    /// Its instance index.
     pub index: u32,
+    /// The URDF text.
     pub urdf: String,
+    /// Each mesh with its path relative to the URDF.
     pub meshes: Vec<(String, TriMesh)>,
 }
 

@@ -44,8 +44,10 @@ pub enum PhysicsProfile {
 }
 
 impl PhysicsProfile {
+    /// Every profile, the default first.
     pub const ALL: &'static [PhysicsProfile] = &[PhysicsProfile::Reference, PhysicsProfile::Ideal];
 
+    /// `reference` or `ideal`, as on the command line and in scene files.
     pub fn name(self) -> &'static str {
         match self {
             PhysicsProfile::Reference => "reference",
@@ -76,6 +78,7 @@ impl std::str::FromStr for PhysicsProfile {
 /// Physical constants of the protocol; the defaults mirror the reference code.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct PhysicsConfig {
+    /// Which solver acts.
     pub profile: PhysicsProfile,
     /// Force limit of the gripper drive, per mount axis (reference: 1500 N).
     pub gripper_max_force: f32,
@@ -85,6 +88,7 @@ pub struct PhysicsConfig {
     pub action_length: f32,
     /// `ideal` only: rapier step and solver iterations.
     pub dt: f32,
+    /// `ideal` only: solver substeps per step.
     pub substeps: usize,
     /// `ideal` only: speed of the drive's set-point along the action.
     pub action_speed: f32,
@@ -114,6 +118,7 @@ impl Default for PhysicsConfig {
 }
 
 impl PhysicsConfig {
+    /// The defaults under `profile`.
     pub fn with_profile(profile: PhysicsProfile) -> Self {
         Self {
             profile,
@@ -125,8 +130,11 @@ impl PhysicsConfig {
 /// What one direction action did to the grasped joint.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ActionOutcome {
+    /// The grasped joint's value before the action.
     pub joint_before: f32,
+    /// Its value after.
     pub joint_after: f32,
+    /// How far the gripper moved (m).
     pub gripper_moved: f32,
     /// `ideal` only: the suction let go because its force passed the limit.
     /// The reference suction never lets go: it slips, holding at most its limit.
@@ -168,6 +176,7 @@ macro_rules! dispatch {
 }
 
 impl Articulation {
+    /// The object at `world_from_base`, every joint at 0, nothing grasped.
     pub fn new(model: Arc<ObjectModel>, world_from_base: Pose3, config: PhysicsConfig) -> Self {
         let backend = match config.profile {
             PhysicsProfile::Ideal => Backend::Ideal(Box::new(ideal::IdealArticulation::new(
@@ -199,15 +208,19 @@ impl Articulation {
         art
     }
 
+    /// The object.
     pub fn model(&self) -> &Arc<ObjectModel> {
         &self.model
     }
+    /// The physical constants.
     pub fn config(&self) -> &PhysicsConfig {
         &self.config
     }
+    /// Which solver acts.
     pub fn profile(&self) -> PhysicsProfile {
         self.config.profile
     }
+    /// Where the object's base stands.
     pub fn world_from_base(&self) -> Pose3 {
         self.world_from_base
     }
@@ -217,12 +230,14 @@ impl Articulation {
         dispatch!(self, b => b.joint_position(joint))
     }
 
+    /// Every joint's value, in the model's order (0 for fixed joints).
     pub fn joint_positions(&self) -> Vec<f32> {
         (0..self.model.joints.len())
             .map(|j| self.joint_position(j))
             .collect()
     }
 
+    /// A joint's velocity (rad/s or m/s); 0 for fixed joints.
     pub fn joint_velocity(&self, joint: usize) -> f32 {
         dispatch!(self, b => b.joint_velocity(joint))
     }
@@ -237,6 +252,7 @@ impl Articulation {
         Ok(())
     }
 
+    /// A link's pose in the world.
     pub fn world_from_link(&self, link: usize) -> Pose3 {
         dispatch!(self, b => b.world_from_link(link))
     }
@@ -273,6 +289,7 @@ impl Articulation {
         dispatch!(self, b => b.gripper_position())
     }
 
+    /// The link the suction holds, if any.
     pub fn grasped_link(&self) -> Option<usize> {
         dispatch!(self, b => b.grasped_link())
     }

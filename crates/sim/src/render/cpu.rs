@@ -12,6 +12,9 @@ use crate::math::{Mat4, Vec3};
 use rapier3d::parry::query::{Ray, RayCast};
 use rapier3d::parry::shape::TriMesh as ParryMesh;
 
+/// The built-in renderer: a ray per pixel against the meshes (parry), in
+/// parallel rows; the same frames as the wgpu renderer's, within a pixel on
+/// silhouettes.
 #[derive(Default)]
 pub struct CpuRenderer {
     meshes: Vec<RenderMesh>,

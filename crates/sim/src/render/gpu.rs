@@ -156,6 +156,8 @@ struct Targets {
     data_buf: wgpu::Buffer,
 }
 
+/// The wgpu renderer: one draw of every part per frame into colour, depth,
+/// segment and normal targets, read back to a [`Frame`].
 pub struct GpuRenderer {
     gpu: Arc<Gpu>,
     vertices: Option<(wgpu::Buffer, u32)>,
@@ -170,6 +172,8 @@ fn padded(bytes_per_row: u32) -> u32 {
 }
 
 impl GpuRenderer {
+    /// A renderer on the process's wgpu device (made on first use), or an
+    /// error when no adapter exists.
     pub fn new() -> Result<Self> {
         let gpu = gpu()?;
         let device = &gpu.device;

@@ -19,7 +19,9 @@ use rayon::prelude::*;
 
 /// Segment ids in [`Frame::segmentation`].
 pub const SEG_BACKGROUND: u32 = 0;
+/// The floor's segment id.
 pub const SEG_PLANE: u32 = 1;
+/// The gripper's segment id.
 pub const SEG_GRIPPER: u32 = 2;
 /// Object links: `SEG_OBJECT_BASE * object_id + link_index` (object ids from 1).
 pub const SEG_OBJECT_BASE: u32 = 1 << 16;
@@ -27,13 +29,23 @@ pub const SEG_OBJECT_BASE: u32 = 1 << 16;
 /// What a segment id stands for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Segment {
+    /// Nothing was hit.
     Background,
+    /// The floor.
     Plane,
+    /// The suction gripper.
     Gripper,
-    Link { object: u32, link: usize },
+    /// A link of an object.
+    Link {
+        /// The object's id (from 1).
+        object: u32,
+        /// The link's index in the object's model.
+        link: usize,
+    },
 }
 
 impl Segment {
+    /// What a segment id stands for.
     pub fn decode(id: u32) -> Segment {
         match id {
             SEG_BACKGROUND => Segment::Background,
@@ -45,6 +57,7 @@ impl Segment {
             },
         }
     }
+    /// The segment id of an object's link.
     pub fn link_id(object: u32, link: usize) -> u32 {
         SEG_OBJECT_BASE * object + link as u32
     }
@@ -53,29 +66,39 @@ impl Segment {
 /// A mesh to draw: triangles in the frame of transform slot `part`.
 #[derive(Clone, Debug)]
 pub struct RenderMesh {
+    /// The transform slot that poses it.
     pub part: usize,
+    /// Its segment id.
     pub segment: u32,
+    /// Linear RGB in [0, 1].
     pub color: [f32; 3],
+    /// The triangles, in the part's frame.
     pub mesh: TriMesh,
 }
 
 /// One rendered frame. Images are row-major, `height` rows of `width` pixels.
 #[derive(Clone, Debug)]
 pub struct Frame {
+    /// Columns.
     pub width: u32,
+    /// Rows.
     pub height: u32,
     /// RGB, 3 bytes per pixel.
     pub rgb: Vec<u8>,
     /// Distance along the optical axis in metres; 0 where nothing was hit.
     pub depth: Vec<f32>,
+    /// Segment id of each pixel ([`Segment::decode`]).
     pub segmentation: Vec<u32>,
     /// Geometric surface normal in world frame, facing the camera (zero on background).
     pub normal_in_world: Vec<[f32; 3]>,
+    /// The camera's intrinsics.
     pub intrinsics: Intrinsics,
+    /// The camera's pose (x right, y down, z forward).
     pub world_from_camera: Pose3,
 }
 
 impl Frame {
+    /// The index of pixel (row, col) in the row-major buffers.
     pub fn index(&self, row: u32, col: u32) -> usize {
         (row * self.width + col) as usize
     }
@@ -103,7 +126,9 @@ impl Frame {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum RendererKind {
+    /// wgpu: a GPU, or Vulkan's CPU driver (lavapipe).
     Wgpu,
+    /// The built-in CPU ray caster, the same output.
     Cpu,
     /// wgpu when an adapter exists, else the CPU renderer (with a notice).
     Auto,
@@ -123,6 +148,7 @@ impl std::str::FromStr for RendererKind {
     }
 }
 
+/// Draws a scene's meshes: colour, depth, segmentation and normals.
 pub trait Renderer: Send + Sync {
     /// Renderer and adapter, e.g. "wgpu/Vulkan llvmpipe".
     fn name(&self) -> String;
@@ -140,8 +166,11 @@ pub trait Renderer: Send + Sync {
 /// One frame to draw in a [`render_batch`]: a scene's renderer, camera and
 /// part transforms.
 pub struct RenderRequest<'a> {
+    /// The scene's renderer (its meshes loaded).
     pub renderer: &'a mut dyn Renderer,
+    /// The camera.
     pub camera: &'a Camera,
+    /// Each part slot's world transform.
     pub part_transforms: Vec<Mat4>,
 }
 

@@ -38,9 +38,11 @@ pub(crate) const MAX_NUMBER_TOKEN: usize = 64;
 /// A link's mass (kg): a milligram to a thousand tonnes. Outside it the
 /// solver's mass ratios (gripper against part) lose all precision in f32.
 pub const MIN_MASS: f64 = 1e-6;
+/// The largest link mass (kg), see [`MIN_MASS`].
 pub const MAX_MASS: f64 = 1e6;
 /// Mesh scales: beyond these a mesh is flat or huge in f32.
 pub const MIN_MESH_SCALE: f64 = 1e-6;
+/// The largest mesh scale, see [`MIN_MESH_SCALE`].
 pub const MAX_MESH_SCALE: f64 = 1e6;
 /// Longest attribute value quoted back in an error message.
 pub(crate) const MAX_QUOTED: usize = 80;
