@@ -361,6 +361,11 @@ impl TrainEnv {
         self.env.as_ref().map(|e| e.scene())
     }
 
+    /// The simulated scene, after a reset.
+    pub fn sim(&self) -> Option<&SimEnv> {
+        self.env.as_ref()
+    }
+
     /// The reference observation: the initial one (exploration) or the goal.
     pub fn reference(&self) -> Option<&Array3<f32>> {
         self.reference.as_ref()

@@ -140,6 +140,9 @@ struct Env {
     inner: TrainEnv,
     buffers: buffers::ObsBuffers,
     copy: bool,
+    /// The scene again at a display size (`render_rgb`), remade when the
+    /// scene or the size changes.
+    display: Option<umpnet_sim::env::SimEnv>,
 }
 
 #[pymethods]
@@ -163,7 +166,58 @@ impl Env {
             inner: TrainEnv::new(cfg, seed).map_err(eval_err)?,
             buffers: buffers::ObsBuffers::new(py, None, h, w)?,
             copy,
+            display: None,
         })
+    }
+
+    /// The current state in colour at `height` x `width` (uint8, H x W x 3),
+    /// gripper included, from the same camera pose the observations use:
+    /// pictures for people, whatever size the observations are.
+    #[pyo3(signature = (height=480, width=640))]
+    fn render_rgb<'py>(
+        &mut self,
+        py: Python<'py>,
+        height: i64,
+        width: i64,
+    ) -> PyResult<Bound<'py, numpy::PyArray3<u8>>> {
+        use umpnet_sim::camera::Camera;
+        let size = |v: i64| u32::try_from(v).ok().filter(|v| (8..=4096).contains(v));
+        let (Some(h), Some(w)) = (size(height), size(width)) else {
+            return Err(PyValueError::new_err(format!(
+                "render size ({height}, {width}): expected (height, width), each in 8..=4096"
+            )));
+        };
+        let Some(sim) = self.inner.sim() else {
+            return Err(PyValueError::new_err(
+                "render_rgb: reset the environment first",
+            ));
+        };
+        let stale = self.display.as_ref().is_none_or(|d| {
+            d.scene() != sim.scene() || (d.camera().height, d.camera().width) != (h, w)
+        });
+        if stale {
+            let renderer = umpnet_sim::render::create_renderer(self.inner.config().renderer)
+                .map_err(|e| eval_err(e.into()))?;
+            self.display = Some(
+                umpnet_sim::env::SimEnv::new(
+                    sim.scene().clone(),
+                    Camera::reference(h, w),
+                    renderer,
+                )
+                .map_err(|e| eval_err(e.into()))?,
+            );
+        }
+        let parts = sim.part_transforms();
+        let display = self
+            .display
+            .as_mut()
+            .ok_or_else(|| runtime_err("no display scene"))?;
+        let frame = display
+            .render_parts(&parts)
+            .map_err(|e| eval_err(e.into()))?;
+        let rgb = numpy::ndarray::Array3::from_shape_vec((h as usize, w as usize, 3), frame.rgb)
+            .map_err(runtime_err)?;
+        Ok(numpy::PyArray3::from_owned_array(py, rgb))
     }
 
     /// Starts an episode on a new scene, or on `scene` (a dict from `.scene`,

@@ -335,3 +335,24 @@ def test_record_episode_writes_one_whole_video_per_episode(fmt, tmp_path):
     env.close()
     with pytest.raises(ValueError, match="render_mode='rgb_array'"):
         umpnet.gym.RecordEpisode(gym.make("umpnet/Explore-v0"), tmp_path)
+
+
+def test_render_size_draws_the_scene_again_for_people(tmp_path):
+    """render_size: render() draws the current state at that size from the
+    observations' camera, gripper included; a larger picture of the same
+    scene, refused by name at a nonsensical size."""
+    env = gym.make("umpnet/Goal-v0", resolution=(24, 32), render_mode="rgb_array", render_size=(240, 320),
+                   category="Door")  # fmt: skip
+    obs, _ = env.reset(seed=2)
+    big = env.render()
+    assert big.shape == (240, 320, 3) and big.dtype == np.uint8
+    # The same picture as the observation, at ten times the size: the small
+    # one's colours, averaged over each 10 x 10 block, agree on most pixels.
+    small = (np.clip(obs["image"][..., 3:6], 0, 1) * 255).astype(float)
+    blocks = big.reshape(24, 10, 32, 10, 3).mean(axis=(1, 3))
+    assert np.mean(np.abs(blocks - small).max(axis=-1) < 40) > 0.9
+    pixel = np.array(env.unwrapped._env.scripted_action("oracle"))
+    env.step({"phase": 0, "pixel": pixel, "direction": np.zeros(3, np.float32)})
+    assert not np.array_equal(env.render(), big), "the gripper does not show"
+    with pytest.raises(ValueError, match="render size"):
+        env.unwrapped._env.render_rgb(0, 10)

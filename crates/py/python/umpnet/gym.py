@@ -23,6 +23,10 @@ A grasp on nothing movable (or, in the goal task, on the wrong part) ends the
 episode. The direction budget is the category's (the paper's), unless
 ``max_steps`` is given. ``info`` carries ``success`` and ``elapsed_steps``.
 
+``render_size=(height, width)`` makes ``render()`` draw the scene again at
+that size (gripper included), for videos people watch; by default it is the
+observation's colour at the observation's size.
+
 ``obs_mode`` chooses what the agent observes: ``image`` (the default, what
 ``umpnet.Policy`` reads), ``rgbd``, ``pointcloud`` or ``state``
 (``umpnet.obs_modes`` describes each).
@@ -86,10 +90,12 @@ class UmpnetEnv(gym.Env):
 
     def __init__(
         self, task="exploration", max_steps=None, resolution=(96, 128), render_mode=None, obs_mode="image",
-        **env_kwargs,
+        render_size=None, **env_kwargs,
     ):  # fmt: skip
         self.task, self.max_steps, self.render_mode = task, max_steps, render_mode
         self.obs_mode = obs_modes.check(obs_mode)
+        # render() at (height, width), drawn again at that size; None: the observation's colour.
+        self.render_size = None if render_size is None else (int(render_size[0]), int(render_size[1]))
         h, w = resolution
         self._seed = env_kwargs.pop("seed", 0)
         env_kwargs.setdefault("copy", True)
@@ -189,6 +195,8 @@ class UmpnetEnv(gym.Env):
     def render(self):
         if self._obs is None:
             return None
+        if self.render_size is not None:
+            return self._env.render_rgb(*self.render_size)
         return rgb(self._obs["image"])
 
 
