@@ -617,3 +617,32 @@ def test_the_paper_direction_net_is_the_papers_and_exports_the_same_contract(tmp
     with torch.no_grad():
         dist, logits = model.decoder(a[0].expand(2, -1), a[1].expand(2, -1), torch.eye(3)[:2])
     assert not torch.allclose(dist[0], dist[1]) and not torch.allclose(logits[0], logits[1])
+
+
+def test_inverse_learns_from_a_policys_own_moves(tmp_path, fixture_package):
+    """--inverse-data PACKAGE: the Inverse baseline's collected moves are that
+    policy's (toward the start where the contradictory policy turns back),
+    as the paper trains Inverse; without it, uniformly random moves."""
+    policy = collect.data_policy(fixture_package, (48, 64), seed=0)
+    env = umpnet.VecEnv(4, category="Door", resolution=(48, 64), seed=3)
+    env.reset()
+    obs, _ = env.step_position(np.array(env.scripted_actions("oracle")))
+    rng = np.random.default_rng(0)
+    wanted = np.array([0, 1, -1, 1])
+    dirs, _ = collect.choose_directions(None, "inverse", obs, wanted, 0.0, rng, data=policy)
+    pixels = obs["gripper_pixel"].clip(min=0)
+    replay = umpnet.Policy(fixture_package, seed=0)
+    expected = {}
+    for mode, rows in (("goal", [2]), ("explore", [0, 1, 3])):
+        for i, d in zip(rows, replay.direction_batch(obs["image"][rows], obs["reference"][rows], pixels[rows], mode)):
+            expected[i] = d["direction"]
+    for i in range(4):
+        if expected[i] is not None:
+            assert np.allclose(dirs[i], expected[i], atol=1e-6), i
+    with pytest.raises(ValueError, match="takes"):
+        collect.data_policy(fixture_package + "/", (96, 128), seed=0)
+    with pytest.raises(SystemExit):
+        train.main(["--preset", "smoke", "--out", str(tmp_path), "--inverse-data", fixture_package])
+    args = ["--preset", "smoke", "--epochs", "1", "--variant", "inverse", "--inverse-data", fixture_package,
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    assert train.main(args) == 0

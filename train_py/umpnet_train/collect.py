@@ -101,18 +101,52 @@ def choose_positions(model, obs, eps, rng, rule="released"):
     return pixels
 
 
+_DATA_POLICIES: dict[str, umpnet.Policy] = {}
+
+
+def data_policy(package: str, resolution: tuple[int, int], seed: int) -> umpnet.Policy:
+    """The Rust policy of `package` (loaded once per run), which makes the
+    Inverse baseline's collected moves."""
+    if package not in _DATA_POLICIES:
+        policy = umpnet.Policy(package, seed=seed)
+        if tuple(policy.resolution) != tuple(resolution):
+            raise ValueError(
+                f"inverse_data {package}: the package takes {policy.resolution}, the run observes {resolution}"
+            )
+        _DATA_POLICIES[package] = policy
+    return _DATA_POLICIES[package]
+
+
+def policy_directions(policy, obs, wanted, eps, rng, out):
+    """The data policy's moves, epsilon-greedy: toward the start (its goal
+    mode, the reference being the first observation) where the
+    contradictory policy wants to go back, away from it otherwise; a random
+    move where it stops or epsilon says so."""
+    pixels = obs["gripper_pixel"].clip(min=0)
+    for mode, rows in (("goal", np.flatnonzero(wanted == -1)), ("explore", np.flatnonzero(wanted != -1))):
+        if len(rows) == 0:
+            continue
+        decisions = policy.direction_batch(obs["image"][rows], obs["reference"][rows], pixels[rows], mode)
+        for i, d in zip(rows, decisions, strict=True):
+            if d["direction"] is not None and rng.random() >= eps:
+                out[i] = d["direction"]
+    return out
+
+
 @torch.no_grad()
-def choose_directions(model, variant, obs, wanted, eps, rng, candidates=64):
+def choose_directions(model, variant, obs, wanted, eps, rng, candidates=64, data=None):
     """Greedy: among random candidates, the largest predicted distance with the
     wanted AoT (+1 forward, -1 back, 0 either: the first step of a sequence);
     else a uniformly random direction. Returns (directions n x 3, candidates
     n x C x 3 ordered best first by the policy's score).
-    The Inverse baseline has no score to explore with: its data comes from
-    uniformly random directions."""
+    The Inverse baseline has no score to explore with: its moves come from
+    `data` (a trained policy, as the paper's), else uniformly at random."""
     n = obs["image"].shape[0]
     cand = unit(rng.normal(size=(n, candidates, 3))).astype(np.float32)
     out = unit(rng.normal(size=(n, 3))).astype(np.float32)
     if variant == "inverse":
+        if data is not None:
+            out = policy_directions(data, obs, np.asarray(wanted), eps, rng, out)
         return out, cand
     pix = to_long(obs["gripper_pixel"].clip(min=0))
     de, ae = model.encoder(to_torch(obs["image"]), to_torch(obs["reference"]), pix)
@@ -192,7 +226,8 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
             wanted = np.zeros(len(env), np.int64) if t == 0 else heading
         else:
             wanted = np.full(len(env), 1 if t < (length + 1) // 2 else -1)
-        dirs, ranked = choose_directions(model, cfg.variant, obs, wanted, eps_dir, rng)
+        data = data_policy(cfg.inverse_data, (cfg.height, cfg.width), cfg.seed) if cfg.inverse_data else None
+        dirs, ranked = choose_directions(model, cfg.variant, obs, wanted, eps_dir, rng, data=data)
         before = {"image": obs["image"].copy(), "gripper_pixel": obs["gripper_pixel"].copy()}
         before_flow = env.articulation_fields()["flow"] if fields else None
         if dense is not None:

@@ -74,6 +74,12 @@ class Config:
         "position net learns each pixel's flow and movable mask, the direction encoder's embedding the "
         "flow (0: off, the paper)",
     )
+    inverse_data: str = option(
+        "",
+        "variant inverse: a model package whose policy makes the collected moves (epsilon-greedy, "
+        "toward the contradictory policy's wanted direction), as the paper trains Inverse on the "
+        "policy's own data; empty: uniformly random moves",
+    )
     random_grasp: str = option(
         "released",
         "exploratory grasps: released (a uniform pixel, kept above the floor or with probability 0.1, "
@@ -196,6 +202,8 @@ def make_config(preset: str = "paper", **overrides) -> Config:
         if choices and f.name in values and values[f.name] not in choices:
             expected = ", ".join(repr(c) for c in choices)
             raise ValueError(f"{f.name} {values[f.name]!r}: expected one of {expected}")
+    if values.get("inverse_data") and values.get("variant", "umpnet") != "inverse":
+        raise ValueError("inverse_data: only the inverse variant collects with another policy's moves")
     cfg_net = values.get("direction_net", "context")
     if cfg_net == "paper":
         widths = values.get("paper_widths", (32, 64, 128, 256, 512, 512, 512))
