@@ -1005,3 +1005,14 @@ def test_infer_session_keeps_a_robot_loops_episode_across_calls(tmp_path):
         assert p.returncode == 2 and says in p.stderr, (extra, p.stderr)
     p = run("infer", "--session", str(tmp_path / "new"), *frame, "--moved", "true", check=False)
     assert p.returncode == 2 and "no session yet" in p.stderr, p.stderr
+
+
+def test_a_learned_policy_says_when_it_does_not_use_the_resolution_asked_for():
+    """A learned policy sees its model's input: --resolution for another size
+    gets a notice naming both, not silence; without the flag, no notice."""
+    model = str(ROOT / "models" / "umpnet-small")
+    asked = run("goal", "--category", "Door", "--policy", "umpnet", "--model", model, "--resolution", "480x640",
+                "--steps", "1")  # fmt: skip
+    assert "sees 96x128" in asked.stderr and "--resolution 480x640 is not used" in asked.stderr, asked.stderr
+    plain = run("goal", "--category", "Door", "--policy", "umpnet", "--model", model, "--steps", "1")
+    assert "notice" not in plain.stderr, plain.stderr

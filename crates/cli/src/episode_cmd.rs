@@ -12,6 +12,9 @@ use umpnet_sim::scene::Task;
 /// to 50, and an episode's curves hold one value per step.
 pub const MAX_STEPS: usize = 10_000;
 
+/// The camera of scripted policies unless --resolution says otherwise.
+const DEFAULT_RESOLUTION: (u32, u32) = (240, 320);
+
 fn parse_steps(s: &str) -> std::result::Result<usize, String> {
     match s.trim().parse::<u64>() {
         Ok(n) if (1..=MAX_STEPS as u64).contains(&n) => Ok(n as usize),
@@ -42,10 +45,10 @@ pub struct EpisodeArgs {
     /// Model package for --policy umpnet (default: models/umpnet-small).
     #[arg(long)]
     pub model: Option<PathBuf>,
-    /// Image size as HEIGHTxWIDTH (rows x columns); a learned policy uses its
-    /// model's.
-    #[arg(long, default_value = "240x320", value_parser = crate::parse_resolution)]
-    pub resolution: (u32, u32),
+    /// Image size as HEIGHTxWIDTH (rows x columns) of a scripted policy's
+    /// camera [default: 240x320]; a learned policy sees its model's input.
+    #[arg(long, value_parser = crate::parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
     /// Renderer: wgpu (a GPU, or Vulkan's CPU driver), cpu (built in), or auto
     /// (wgpu when an adapter exists, else cpu, with a notice).
     #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
@@ -77,13 +80,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         Some((_, make)) => make()?,
         None => return Err(usage("--policy is empty")),
     };
-    // One policy: a learned one sees its package's input resolution.
-    let resolution = resolved
-        .resolutions
-        .values()
-        .next()
-        .copied()
-        .unwrap_or(a.resolution);
+    let resolution = camera_resolution(a, &resolved.resolutions);
     let scene = a.object.scene(task)?;
     let budget = a
         .steps
@@ -262,6 +259,29 @@ fn write_pictures(
         &out.join("episode.png"),
     )?;
     pictures::write_gif(&steps, &out.join("episode.gif"))
+}
+
+/// The policy's camera size: a learned policy's model input (with a notice
+/// when --resolution asked for another), else --resolution or the default.
+fn camera_resolution(
+    a: &EpisodeArgs,
+    resolutions: &std::collections::BTreeMap<String, (u32, u32)>,
+) -> (u32, u32) {
+    // One policy: a learned one sees its package's input resolution.
+    let learned = resolutions.values().next().copied();
+    if let (Some((h, w)), Some(asked)) = (learned, a.resolution)
+        && asked != (h, w)
+    {
+        eprintln!(
+            "notice: policy {} sees {h}x{w}, its model's input; --resolution {}x{} is not used (pictures are drawn at --picture-size)",
+            a.policy, asked.0, asked.1
+        );
+    }
+    resolutions
+        .values()
+        .next()
+        .copied()
+        .unwrap_or(a.resolution.unwrap_or(DEFAULT_RESOLUTION))
 }
 
 /// The pictures' title: what ran on what, and how it ended.
