@@ -180,43 +180,8 @@ impl Env {
         height: i64,
         width: i64,
     ) -> PyResult<Bound<'py, numpy::PyArray3<u8>>> {
-        use umpnet_sim::camera::Camera;
-        let size = |v: i64| u32::try_from(v).ok().filter(|v| (8..=4096).contains(v));
-        let (Some(h), Some(w)) = (size(height), size(width)) else {
-            return Err(PyValueError::new_err(format!(
-                "render size ({height}, {width}): expected (height, width), each in 8..=4096"
-            )));
-        };
-        let Some(sim) = self.inner.sim() else {
-            return Err(PyValueError::new_err(
-                "render_rgb: reset the environment first",
-            ));
-        };
-        let stale = self.display.as_ref().is_none_or(|d| {
-            d.scene() != sim.scene() || (d.camera().height, d.camera().width) != (h, w)
-        });
-        if stale {
-            let renderer = umpnet_sim::render::create_renderer(self.inner.config().renderer)
-                .map_err(|e| eval_err(e.into()))?;
-            self.display = Some(
-                umpnet_sim::env::SimEnv::new(
-                    sim.scene().clone(),
-                    Camera::reference(h, w),
-                    renderer,
-                )
-                .map_err(|e| eval_err(e.into()))?,
-            );
-        }
-        let parts = sim.part_transforms();
-        let display = self
-            .display
-            .as_mut()
-            .ok_or_else(|| runtime_err("no display scene"))?;
-        let frame = display
-            .render_parts(&parts)
-            .map_err(|e| eval_err(e.into()))?;
-        let rgb = numpy::ndarray::Array3::from_shape_vec((h as usize, w as usize, 3), frame.rgb)
-            .map_err(runtime_err)?;
+        let size = display::size(height, width)?;
+        let rgb = display::draw(&mut self.display, &self.inner, size)?;
         Ok(numpy::PyArray3::from_owned_array(py, rgb))
     }
 
@@ -349,6 +314,7 @@ impl Env {
 mod arrays;
 mod buffers;
 mod config;
+mod display;
 mod fields;
 mod mixed;
 mod physics;

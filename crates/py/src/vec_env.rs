@@ -37,6 +37,8 @@ pub(crate) struct VecEnv {
     buffers: buffers::ObsBuffers,
     copy: bool,
     batch_render: bool,
+    /// Each environment's scene at a display size (`render_rgb`).
+    displays: Vec<Option<umpnet_sim::env::SimEnv>>,
 }
 
 #[pymethods]
@@ -80,11 +82,35 @@ impl VecEnv {
             buffers: buffers::ObsBuffers::new(py, Some(n), h, w)?,
             copy,
             batch_render,
+            displays: (0..n).map(|_| None).collect(),
         })
     }
 
     fn __len__(&self) -> usize {
         self.envs.len()
+    }
+
+    /// Every environment's current state in colour at `height` x `width`
+    /// (uint8, n x H x W x 3), as `Env.render_rgb` draws one.
+    #[pyo3(signature = (height=480, width=640))]
+    fn render_rgb<'py>(
+        &mut self,
+        py: Python<'py>,
+        height: i64,
+        width: i64,
+    ) -> PyResult<Bound<'py, numpy::PyArray4<u8>>> {
+        let (h, w) = crate::display::size(height, width)?;
+        let mut all =
+            numpy::ndarray::Array4::<u8>::zeros((self.envs.len(), h as usize, w as usize, 3));
+        for ((env, display), mut out) in self
+            .envs
+            .iter()
+            .zip(self.displays.iter_mut())
+            .zip(all.outer_iter_mut())
+        {
+            out.assign(&crate::display::draw(display, env, (h, w))?);
+        }
+        Ok(numpy::PyArray4::from_owned_array(py, all))
     }
 
     /// Current joint values of every environment's object (a list each).

@@ -356,3 +356,12 @@ def test_render_size_draws_the_scene_again_for_people(tmp_path):
     assert not np.array_equal(env.render(), big), "the gripper does not show"
     with pytest.raises(ValueError, match="render size"):
         env.unwrapped._env.render_rgb(0, 10)
+    venv = gym.make_vec("umpnet/Goal-v0", num_envs=2, resolution=(24, 32), render_mode="rgb_array",
+                        render_size=(48, 64), category="Door")  # fmt: skip
+    venv.reset(seed=2)
+    frames = venv.render()
+    assert frames.shape == (2, 48, 64, 3) and frames.dtype == np.uint8
+    single = gym.make("umpnet/Goal-v0", resolution=(24, 32), render_mode="rgb_array", render_size=(48, 64),
+                      category="Door")  # fmt: skip
+    single.reset(seed=2)
+    assert np.array_equal(frames[0], single.render()), "environment 0 of the vector env is not the single env"

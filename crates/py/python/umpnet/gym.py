@@ -229,9 +229,11 @@ class UmpnetVectorEnv(VectorEnv):
         resolution=(96, 128),
         render_mode=None,
         obs_mode="image",
+        render_size=None,
         **env_kwargs,
     ):
         self.obs_mode = obs_modes.check(obs_mode)
+        self.render_size = None if render_size is None else (int(render_size[0]), int(render_size[1]))
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
         self.render_mode = render_mode
@@ -343,9 +345,12 @@ class UmpnetVectorEnv(VectorEnv):
         return self._observation(obs), reward, terminated, truncated, info
 
     def render(self):
-        """Each environment's current colour image, (num_envs, H, W, 3) uint8."""
+        """Each environment's current colour image, (num_envs, H, W, 3) uint8
+        (drawn again at ``render_size`` when it is given)."""
         if self._last is None:
             return None
+        if self.render_size is not None:
+            return self._vec.render_rgb(*self.render_size)
         return rgb(self._last["image"])
 
     def __repr__(self):
