@@ -580,9 +580,6 @@ pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
 
 pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     let inputs = read_inputs(a)?;
-    if let Some(dir) = &a.session {
-        return crate::infer_session::step(dir, a, &inputs);
-    }
     let pixel_small = match inputs.grasp {
         Some(p) => inputs.to_model(p),
         None => {

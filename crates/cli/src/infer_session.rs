@@ -5,8 +5,8 @@
 //! `--moved` whether the last move moved the part. The state is
 //! `DIR/session.json` and, exploring, `DIR/reference.f32` (the first frame
 //! at the model's size), each replaced whole.
-use crate::infer_cmd::{InferArgs, Inputs, decide};
-use crate::usage;
+use crate::infer_cmd::{InferArgs, Inputs, decide, read_inputs};
+use crate::{Ctx, usage};
 use anyhow::{Context, Result, bail};
 use nalgebra::Vector3;
 use rand::SeedableRng;
@@ -69,12 +69,14 @@ fn save(dir: &Path, state: &State) -> Result<()> {
     Ok(())
 }
 
-/// One call of the loop: start the session, or take its next step.
-pub fn step(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
+/// One call of the loop (`infer --session DIR`): start the session, or
+/// take its next step.
+pub fn run(_ctx: &Ctx, a: &InferArgs, dir: &Path) -> Result<()> {
+    let inputs = read_inputs(a)?;
     if dir.join("session.json").exists() {
-        next(dir, a, inputs)
+        next(dir, a, &inputs)
     } else {
-        start(dir, a, inputs)
+        start(dir, a, &inputs)
     }
 }
 

@@ -344,7 +344,10 @@ fn main() {
         Command::Goal(a) => episode_cmd::run(&ctx, a, Task::Goal),
         Command::Eval(a) => eval_cmd::run(&ctx, a),
         Command::Bench(a) => bench_cmd::run(&ctx, a),
-        Command::Infer(a) => infer_cmd::run(&ctx, a),
+        Command::Infer(a) => match &a.session {
+            Some(dir) => infer_session::run(&ctx, a, dir),
+            None => infer_cmd::run(&ctx, a),
+        },
     };
     if let Err(e) = result {
         let code = if e.downcast_ref::<Usage>().is_some() {

@@ -1,10 +1,12 @@
 //! VecEnv's mixed step (`step_mixed`, gymnasium's next-step autoreset): one
-//! action kind per environment, and the info dict of what each did.
-use crate::vec_env::{grasp_at, move_along};
+//! action kind per environment, and the info dict of what each did; and
+//! the step helpers every VecEnv step shares.
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rayon::prelude::*;
 use umpnet_eval::EvalError;
+use umpnet_eval::train_env::render_pending;
 use umpnet_eval::train_env::{PositionInfo, TrainEnv};
 use umpnet_sim::env::StepLabels;
 
@@ -171,4 +173,47 @@ pub(crate) fn mixed_info<'py>(
     move_fields(py, &d, outcomes)?;
     d.set_item("budget", PyArray1::from_vec(py, budgets))?;
     Ok(d)
+}
+
+/// `f` on every environment in parallel, then the frames its steps left to
+/// draw, in one batch. They are drawn even when one environment failed: the
+/// others' steps happened, and their observations must show them.
+pub(crate) fn step_all<T: Send>(
+    envs: &mut [TrainEnv],
+    f: impl Fn(usize, &mut TrainEnv) -> Result<T, EvalError> + Sync + Send,
+) -> Result<Vec<T>, EvalError> {
+    let out = envs
+        .par_iter_mut()
+        .enumerate()
+        .map(|(i, e)| f(i, e))
+        .collect();
+    render_pending(envs)?;
+    out
+}
+
+/// A grasp whose frame `step_all` draws with the batch (`batch`), or at once.
+pub(crate) fn grasp_at(
+    e: &mut TrainEnv,
+    row: u32,
+    col: u32,
+    batch: bool,
+) -> Result<PositionInfo, EvalError> {
+    if batch {
+        e.step_position_deferred(row, col)
+    } else {
+        e.step_position_in_place(row, col)
+    }
+}
+
+/// A move whose frame `step_all` draws with the batch (`batch`), or at once.
+pub(crate) fn move_along(
+    e: &mut TrainEnv,
+    d: [f32; 3],
+    batch: bool,
+) -> Result<StepLabels, EvalError> {
+    if batch {
+        e.step_direction_deferred(d)
+    } else {
+        e.step_direction_in_place(d)
+    }
 }

@@ -6,7 +6,7 @@
     reason = "every index follows a shape check of the array it indexes, which raises ValueError otherwise"
 )]
 use crate::arrays::{Arr1, Arr2, Arr3};
-use crate::mixed::{DEFAULT_BUDGET, Mixed, mixed_info, mixed_step};
+use crate::mixed::{DEFAULT_BUDGET, Mixed, grasp_at, mixed_info, mixed_step, move_along, step_all};
 use crate::{
     MAX_ENVS, buffers, eval_err, parse_direction, probe, scene_from_py, scene_to_py, scripted_to_py,
 };
@@ -15,8 +15,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
-use umpnet_eval::EvalError;
-use umpnet_eval::train_env::{PositionInfo, TrainEnv, render_pending};
+use umpnet_eval::train_env::TrainEnv;
 use umpnet_sim::env::StepLabels;
 use umpnet_sim::scene::Scene;
 
@@ -447,48 +446,5 @@ impl VecEnv {
             )?);
         }
         Ok(out)
-    }
-}
-
-/// `f` on every environment in parallel, then the frames its steps left to
-/// draw, in one batch. They are drawn even when one environment failed: the
-/// others' steps happened, and their observations must show them.
-pub(crate) fn step_all<T: Send>(
-    envs: &mut [TrainEnv],
-    f: impl Fn(usize, &mut TrainEnv) -> Result<T, EvalError> + Sync + Send,
-) -> Result<Vec<T>, EvalError> {
-    let out = envs
-        .par_iter_mut()
-        .enumerate()
-        .map(|(i, e)| f(i, e))
-        .collect();
-    render_pending(envs)?;
-    out
-}
-
-/// A grasp whose frame `step_all` draws with the batch (`batch`), or at once.
-pub(crate) fn grasp_at(
-    e: &mut TrainEnv,
-    row: u32,
-    col: u32,
-    batch: bool,
-) -> Result<PositionInfo, EvalError> {
-    if batch {
-        e.step_position_deferred(row, col)
-    } else {
-        e.step_position_in_place(row, col)
-    }
-}
-
-/// A move whose frame `step_all` draws with the batch (`batch`), or at once.
-pub(crate) fn move_along(
-    e: &mut TrainEnv,
-    d: [f32; 3],
-    batch: bool,
-) -> Result<StepLabels, EvalError> {
-    if batch {
-        e.step_direction_deferred(d)
-    } else {
-        e.step_direction_in_place(d)
     }
 }

@@ -168,7 +168,13 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         rows,
         objects,
         partnet,
-    } = rows::table_rows(a)?;
+    } = rows::table_rows(&rows::RowRequest {
+        categories: &a.categories,
+        split: a.split.as_deref(),
+        objects: a.objects.as_deref(),
+        partnet: a.partnet.as_deref(),
+        split_file: a.split_file.as_deref(),
+    })?;
 
     let threads = a
         .threads

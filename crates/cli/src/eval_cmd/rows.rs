@@ -1,7 +1,6 @@
 //! The table's rows of an `umpnet eval`: categories (generated, or a
 //! PartNet-Mobility folder's instances), then object folders; and the
 //! SHA-256 digests that results.json records of the files they read.
-use super::EvalArgs;
 use super::report::{ObjectInfo, PartnetInfo};
 use crate::usage;
 use anyhow::{Context, Result};
@@ -19,15 +18,25 @@ pub struct TableRows {
     pub partnet: Option<PartnetInfo>,
 }
 
+/// What `eval` asked for: `--categories`, `--split`, `--objects`,
+/// `--partnet` and `--split-file`.
+pub struct RowRequest<'a> {
+    pub categories: &'a [Category],
+    pub split: Option<&'a str>,
+    pub objects: Option<&'a Path>,
+    pub partnet: Option<&'a Path>,
+    pub split_file: Option<&'a Path>,
+}
+
 /// The rows `--categories`/`--split`, `--partnet` and `--objects` ask for.
-pub fn table_rows(a: &EvalArgs) -> Result<TableRows> {
-    let split = match (&a.split, &a.objects) {
-        (Some(s), _) => Some(s.as_str()),
+pub fn table_rows(a: &RowRequest<'_>) -> Result<TableRows> {
+    let split = match (a.split, a.objects) {
+        (Some(s), _) => Some(s),
         (None, Some(_)) => None,
         (None, None) => Some("all"),
     };
     let categories: Vec<Category> = if !a.categories.is_empty() {
-        a.categories.clone()
+        a.categories.to_vec()
     } else {
         match split {
             None => Vec::new(),
@@ -53,7 +62,7 @@ pub fn table_rows(a: &EvalArgs) -> Result<TableRows> {
             )));
         }
     }
-    let object_rows = match &a.objects {
+    let object_rows = match a.objects {
         Some(dir) => object_rows(dir).map_err(|e| usage(e.to_string()))?,
         None => Vec::new(),
     };
@@ -68,13 +77,8 @@ pub fn table_rows(a: &EvalArgs) -> Result<TableRows> {
             });
         }
     }
-    let (categories, category_rows, partnet) = match &a.partnet {
-        Some(dir) => partnet_rows(
-            dir,
-            a.split_file.as_deref(),
-            &categories,
-            !a.categories.is_empty(),
-        )?,
+    let (categories, category_rows, partnet) = match a.partnet {
+        Some(dir) => partnet_rows(dir, a.split_file, &categories, !a.categories.is_empty())?,
         None => {
             let rows = categories.iter().map(|c| Row::Category(*c)).collect();
             (categories, rows, None)
