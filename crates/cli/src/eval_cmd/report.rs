@@ -84,6 +84,19 @@ impl RunInfo {
     }
 }
 
+/// The episodes file of an evaluation's `--out` folder.
+pub const EPISODES: &str = "episodes.jsonl";
+/// What the run is and how long it has run, rewritten as it goes.
+pub const RUN: &str = "run.json";
+
+/// The episodes file a report stands for: its name beside results.json and
+/// its SHA-256.
+#[derive(Clone, Debug)]
+pub struct EpisodesDigest {
+    pub name: String,
+    pub sha256: String,
+}
+
 /// One evaluation's (or one shard's) report: what ran, and its episodes'
 /// aggregates.
 pub struct Report {
@@ -92,7 +105,7 @@ pub struct Report {
     pub wall_seconds: f64,
     pub agg: Aggregate,
     /// The episodes file beside results.json, when the run wrote one.
-    pub episodes_file: Option<super::stream::EpisodesDigest>,
+    pub episodes_file: Option<EpisodesDigest>,
 }
 
 /// The part of an episode outcome that the tables read.
@@ -315,8 +328,8 @@ impl Report {
     /// Every file [`Report::write`] and the run itself may write: what `--out`
     /// must not already hold.
     pub const FILES: &'static [&'static str] = &[
-        super::stream::RUN,
-        super::stream::EPISODES,
+        RUN,
+        EPISODES,
         "results.json",
         "results.csv",
         "results.md",

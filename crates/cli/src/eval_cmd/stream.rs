@@ -4,7 +4,8 @@
 //! a time to resume an interrupted run or to merge shards, so memory never
 //! holds more than a line. `run.json` beside it says what the run is, so
 //! that `--resume` continues only the same evaluation.
-use super::report::{Aggregate, RunInfo, Scored};
+use super::report::{Aggregate, EpisodesDigest, RunInfo, Scored};
+pub use super::report::{EPISODES, RUN};
 use super::tables::RowKey;
 use crate::usage;
 use anyhow::{Context, Result, bail};
@@ -14,20 +15,8 @@ use std::io::{BufRead, BufReader, BufWriter, Read, Seek, Write};
 use std::path::{Path, PathBuf};
 use umpnet_eval::benchmark::Shard;
 
-/// The episodes file of an evaluation's `--out` folder.
-pub const EPISODES: &str = "episodes.jsonl";
-/// What the run is and how long it has run, rewritten as it goes.
-pub const RUN: &str = "run.json";
 /// No episode outcome comes near this (a few KB each); a longer line is not one.
 const MAX_LINE: u64 = 64 << 20;
-
-/// The episodes file a report stands for: its name beside results.json and
-/// its SHA-256.
-#[derive(Clone, Debug)]
-pub struct EpisodesDigest {
-    pub name: String,
-    pub sha256: String,
-}
 
 /// Appends episode lines and hashes what it wrote. `commit` flushes: a run
 /// killed at any moment leaves whole lines, then at most one cut line, which

@@ -31,7 +31,10 @@
 )]
 use super::kinematics::{forward_kinematics, joint_motion, movable_chain, moved_links};
 use super::pgs::{MAX_DOFS, RowSpace, invert, solve};
-use super::reference_rows::{Responses, push_limit_rows, push_suction_rows, unit};
+pub use super::reference_rows::MAX_CHAIN;
+use super::reference_rows::{
+    ChainMatrix, Responses, WorldAxis, linear, push_limit_rows, push_suction_rows, unit,
+};
 use super::{ActionOutcome, PhysicsConfig};
 use crate::error::{Result, SimError};
 use crate::math::{Pose3, Vec3};
@@ -109,19 +112,12 @@ struct Suction {
     fixed_inverse_mass: Option<ChainMatrix>,
 }
 
-/// A chain's joint-space matrix, row-major in the first n x n entries.
-pub(super) type ChainMatrix = [f64; MAX_CHAIN * MAX_CHAIN];
-
 #[derive(Clone)]
 struct Mount {
     position: Vec3,
     velocity: Vec3,
     suction: Option<Suction>,
 }
-
-/// At most this many movable joints above the grasped link carry load; the
-/// ones farther up stay still (no generated or PartNet object has more).
-pub const MAX_CHAIN: usize = MAX_DOFS - 3;
 
 #[derive(Clone)]
 pub(crate) struct ReferenceArticulation {
@@ -447,9 +443,6 @@ impl ReferenceArticulation {
     }
 }
 
-/// A chain joint in world: its kind, axis and origin.
-pub(super) type WorldAxis = (JointKind, Vec3, Vec3);
-
 /// Each chain joint's axis and origin in world (unused slots: fixed).
 fn chain_axes(
     model: &ObjectModel,
@@ -463,16 +456,6 @@ fn chain_axes(
         *slot = (jm.kind, pose.rotation * jm.axis_in_joint, pose.translation);
     }
     axes
-}
-
-/// The velocity of the point `at` per unit speed of the joint (its motion
-/// subspace): axis x (at - origin) for a hinge, the axis for a slider.
-pub(super) fn linear(&(kind, axis, origin): &WorldAxis, at: Vec3) -> Vec3 {
-    if kind.is_prismatic() {
-        axis
-    } else {
-        axis.cross(at - origin)
-    }
 }
 
 /// The angular velocity per unit speed of the joint.

@@ -6,9 +6,28 @@
     reason = "indices run below the chain length n <= MAX_CHAIN and the row's MAX_DOFS slots"
 )]
 use super::pgs::{MAX_DOFS, RowSpace};
-use super::reference::{ChainMatrix, MAX_CHAIN, WorldAxis, linear};
 use crate::math::Vec3;
 use crate::model::{JointKind, ObjectModel};
+
+/// At most this many movable joints above the grasped link carry load; the
+/// ones farther up stay still (no generated or PartNet object has more).
+pub const MAX_CHAIN: usize = MAX_DOFS - 3;
+
+/// A chain's joint-space matrix, row-major in the first n x n entries.
+pub(super) type ChainMatrix = [f64; MAX_CHAIN * MAX_CHAIN];
+
+/// A chain joint in world: its kind, axis and origin.
+pub(super) type WorldAxis = (JointKind, Vec3, Vec3);
+
+/// The velocity of the point `at` per unit speed of the joint (its motion
+/// subspace): axis x (at - origin) for a hinge, the axis for a slider.
+pub(super) fn linear(&(kind, axis, origin): &WorldAxis, at: Vec3) -> Vec3 {
+    if kind.is_prismatic() {
+        axis
+    } else {
+        axis.cross(at - origin)
+    }
+}
 
 /// How a row's impulse changes the velocities: through the chain's inverse
 /// mass for the object's joints, the mount's mass for the mount's three.
