@@ -471,6 +471,19 @@ impl Inputs {
         )
     }
 
+    /// The grasp at the model's size: `--grasp`, else the policy's position
+    /// (masked by the goal, when there is one).
+    pub fn grasp_pixel(&self) -> Result<(usize, usize)> {
+        Ok(match self.grasp {
+            Some(p) => self.to_model(p),
+            None => {
+                self.policy
+                    .position(self.obs.view(), self.reference.as_ref().map(|r| r.view()))?
+                    .pixel
+            }
+        })
+    }
+
     /// Goal mode when a goal frame was given.
     pub fn mode(&self) -> Mode {
         if self.reference.is_some() {
@@ -580,18 +593,7 @@ pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
 
 pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
     let inputs = read_inputs(a)?;
-    let pixel_small = match inputs.grasp {
-        Some(p) => inputs.to_model(p),
-        None => {
-            inputs
-                .policy
-                .position(
-                    inputs.obs.view(),
-                    inputs.reference.as_ref().map(|r| r.view()),
-                )?
-                .pixel
-        }
-    };
+    let pixel_small = inputs.grasp_pixel()?;
     let reference = inputs
         .reference
         .as_ref()

@@ -91,18 +91,7 @@ fn start(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
             ));
         }
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        let pixel = match inputs.grasp {
-            Some(p) => inputs.to_model(p),
-            None => {
-                inputs
-                    .policy
-                    .position(
-                        inputs.obs.view(),
-                        inputs.reference.as_ref().map(|r| r.view()),
-                    )?
-                    .pixel
-            }
-        };
+        let pixel = inputs.grasp_pixel()?;
         let mode = inputs.mode();
         let reference_shape = (mode == Mode::Explore).then(|| {
             let (h, w, c) = inputs.obs.dim();

@@ -10,13 +10,9 @@ pub const ORT_LIBRARY: &str = "libonnxruntime.so.1.31.1";
 static ENVIRONMENT: OnceLock<ort::environment::Environment> = OnceLock::new();
 static LOADED: OnceLock<std::result::Result<PathBuf, String>> = OnceLock::new();
 
-fn in_site_packages(site: &Path) -> Option<PathBuf> {
-    let capi = site.join("onnxruntime").join("capi");
-    let exact = capi.join(ORT_LIBRARY);
-    if exact.is_file() {
-        return Some(exact);
-    }
-    std::fs::read_dir(&capi)
+/// A `libonnxruntime.so.1.*` in `dir`, if any.
+fn versioned_library(dir: &Path) -> Option<PathBuf> {
+    std::fs::read_dir(dir)
         .ok()?
         .flatten()
         .map(|e| e.path())
@@ -25,6 +21,15 @@ fn in_site_packages(site: &Path) -> Option<PathBuf> {
                 .and_then(|n| n.to_str())
                 .is_some_and(|n| n.starts_with("libonnxruntime.so.1."))
         })
+}
+
+fn in_site_packages(site: &Path) -> Option<PathBuf> {
+    let capi = site.join("onnxruntime").join("capi");
+    let exact = capi.join(ORT_LIBRARY);
+    if exact.is_file() {
+        return Some(exact);
+    }
+    versioned_library(&capi)
 }
 
 /// `.venv/lib/python3*/site-packages` under `dir` or any of its ancestors.
@@ -45,18 +50,8 @@ fn venv_library(dir: &Path) -> Option<PathBuf> {
 /// `lib/umpnet/libonnxruntime.so.1.*` under `dir` or any of its ancestors: where
 /// `make install-cli` puts the library beside an installed binary.
 fn prefix_library(dir: &Path) -> Option<PathBuf> {
-    dir.ancestors().find_map(|d| {
-        let lib = d.join("lib").join("umpnet");
-        std::fs::read_dir(&lib)
-            .ok()?
-            .flatten()
-            .map(|e| e.path())
-            .find(|p| {
-                p.file_name()
-                    .and_then(|n| n.to_str())
-                    .is_some_and(|n| n.starts_with("libonnxruntime.so.1."))
-            })
-    })
+    dir.ancestors()
+        .find_map(|d| versioned_library(&d.join("lib").join("umpnet")))
 }
 
 fn python_library() -> Option<PathBuf> {
