@@ -64,8 +64,11 @@ for v in $VARIANTS; do
         [ "$(epoch_of "$out/checkpoint.pt")" = "$EPOCHS" ] && { echo "$v: done ($EPOCHS epochs)"; continue; }
         resume=(--resume)
     fi
-    echo "$v: training to epoch $EPOCHS ${resume[*]}"
+    # The paper trains Inverse on the policy's own moves: the shipped model's.
+    data=()
+    [ "$v" = inverse ] && data=(--inverse-data ../models/umpnet-small)
+    echo "$v: training to epoch $EPOCHS ${resume[*]} ${data[*]}"
     (cd train_py && "$PY" -m umpnet_train.train --preset cpu-small --dense-labels 16 --variant "$v" --seed 0 \
-        --epochs "$EPOCHS" --out "../$out" "${resume[@]}")
+        --epochs "$EPOCHS" --out "../$out" "${data[@]}" "${resume[@]}")
     keep "$v"
 done

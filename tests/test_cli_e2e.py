@@ -727,6 +727,12 @@ def test_rrd_recordings_of_an_episode_and_of_chosen_eval_episodes(tmp_path):
     assert "recorded 4 episodes" in p.stdout
     for f in out.iterdir():
         assert f.stat().st_size > 10_000 and f.read_bytes()[:3] == b"RRF", f
+    # Each step is also drawn at the display size (480x640 by default), whatever the policy's 48x64.
+    small = tmp_path / "small"
+    args = ["eval", "--task", "goal", "--categories", "Door", "--episodes-per-category", "1"]
+    run(*args, "--policies", "oracle", "--resolution", "48x64", "--rrd", str(small), "--picture-size", "24x32")
+    display = (out / "Door_0_oracle.rrd").stat().st_size
+    assert display > 1.4 * (small / "Door_0_oracle.rrd").stat().st_size, display  # flat colours compress well
     # Without --rrd, --rrd-per-category is a usage error.
     bad = run("eval", "--rrd-per-category", "2", check=False)
     assert bad.returncode == 2 and "--rrd" in bad.stderr

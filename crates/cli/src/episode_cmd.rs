@@ -56,8 +56,9 @@ pub struct EpisodeArgs {
     /// Write one PNG per step, a contact sheet and an animated GIF here.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Size of the pictures in --out, HEIGHTxWIDTH, whatever the policy sees
-    /// (its view is drawn as an inset).
+    /// Size of the pictures in --out and of the --rrd display view,
+    /// HEIGHTxWIDTH, whatever the policy sees (its view is drawn as an inset,
+    /// and recorded as `world/camera`).
     #[arg(long, default_value = "480x640", value_parser = crate::parse_resolution)]
     pub picture_size: (u32, u32),
     /// Write a Rerun recording of the episode to this .rrd file (images,
@@ -90,6 +91,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         Some(path) => Some(crate::rrd::Recorder::create(
             path,
             &format!("{} {:?}, seed {}", a.policy, task, a.object.seed),
+            Some((a.picture_size, a.renderer)),
         )?),
         None => None,
     };

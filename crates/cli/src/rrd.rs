@@ -7,7 +7,10 @@
 //!   and its pose at each step;
 //! - `world/gripper`: the suction cup's pose and point;
 //! - `world/camera`: the camera pose and pinhole, with `color`, `depth` (m)
-//!   and `segmentation` images and the grasped `pixel`;
+//!   and `segmentation` images and the grasped `pixel`: what the policy sees;
+//! - `world/display`: the same pose drawn again at a display size
+//!   (`--picture-size`), with its `color` image and the `grasp` point: what a
+//!   person watches;
 //! - `world/actions/executed` and `world/actions/candidates`: arrows from the
 //!   gripper, candidates scaled by predicted distance and coloured by
 //!   predicted AoT (green forward, red back, grey none);
@@ -16,8 +19,10 @@
 use anyhow::{Context, Result};
 use std::path::Path;
 use umpnet_eval::episode::HookFrame;
-use umpnet_sim::env::render_meshes;
+use umpnet_sim::camera::Camera;
+use umpnet_sim::env::{SimEnv, render_meshes};
 use umpnet_sim::math::{Mat4, Vec3};
+use umpnet_sim::render::{RendererKind, create_renderer};
 
 /// Candidates drawn per step, the most distance first (as in the pictures).
 const SHOWN_CANDIDATES: usize = 16;
@@ -31,6 +36,10 @@ pub fn check(_path: &Path) -> Result<()> {
 pub struct Recorder {
     rec: rerun::RecordingStream,
     path: std::path::PathBuf,
+    /// The display view's size and renderer, and (from the first frame on)
+    /// the scene drawn at that size.
+    display: Option<((u32, u32), RendererKind)>,
+    display_env: Option<SimEnv>,
 }
 
 fn rr_err(path: &Path) -> impl Fn(rerun::RecordingStreamError) -> anyhow::Error + '_ {
@@ -54,8 +63,13 @@ fn aot_color(aot: Option<&i8>) -> rerun::Color {
 }
 
 impl Recorder {
-    /// Starts a recording written to `path` (created or replaced).
-    pub fn create(path: &Path, name: &str) -> Result<Self> {
+    /// Starts a recording written to `path` (created or replaced); with
+    /// `display`, each step is also drawn at that size (HEIGHT, WIDTH).
+    pub fn create(
+        path: &Path,
+        name: &str,
+        display: Option<((u32, u32), RendererKind)>,
+    ) -> Result<Self> {
         if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent)
                 .with_context(|| format!("creating {}", parent.display()))?;
@@ -69,6 +83,8 @@ impl Recorder {
         Ok(Self {
             rec,
             path: path.to_owned(),
+            display,
+            display_env: None,
         })
     }
 
@@ -147,6 +163,7 @@ impl Recorder {
             rec.log("plot/joint", &rerun::Scalars::single(f64::from(*v)))
                 .map_err(&err)?;
         }
+        log_display(rec, &self.path, self.display, &mut self.display_env, h)?;
         let Some(step) = h.step else {
             return Ok(());
         };
@@ -262,6 +279,62 @@ impl Recorder {
     }
 }
 
+/// The scene at the display size, in the same pose as the policy's camera.
+fn log_display(
+    rec: &rerun::RecordingStream,
+    path: &Path,
+    display: Option<((u32, u32), RendererKind)>,
+    display_env: &mut Option<SimEnv>,
+    h: &HookFrame<'_>,
+) -> Result<()> {
+    let Some((size, renderer)) = display else {
+        return Ok(());
+    };
+    let err = rr_err(path);
+    let display = match display_env {
+        Some(d) => d,
+        None => {
+            let camera = Camera::reference(size.0, size.1);
+            let k = camera.intrinsics();
+            rec.log_static(
+                "world/display",
+                &transform(&camera.world_from_camera().to_mat4()),
+            )
+            .map_err(&err)?;
+            rec.log_static(
+                "world/display",
+                &rerun::Pinhole::from_focal_length_and_resolution(
+                    [k.fx, k.fy],
+                    [size.1 as f32, size.0 as f32],
+                )
+                .with_principal_point([k.cx, k.cy]),
+            )
+            .map_err(&err)?;
+            let env = SimEnv::new(h.env.scene().clone(), camera, create_renderer(renderer)?)
+                .context("drawing the recording's display view")?;
+            display_env.insert(env)
+        }
+    };
+    let f = display.render_parts(&h.env.part_transforms())?;
+    rec.log(
+        "world/display/color",
+        &rerun::Image::from_rgb24(f.rgb.clone(), [f.width, f.height]),
+    )
+    .map_err(&err)?;
+    if let Some((x, y)) = h
+        .env
+        .grasp_point_in_world()
+        .and_then(|p| crate::images::project(&f, p))
+    {
+        rec.log(
+            "world/display/grasp",
+            &rerun::Points2D::new([(x, y)]).with_radii([4.0]),
+        )
+        .map_err(&err)?;
+    }
+    Ok(())
+}
+
 /// The entity paths and the number of `step` values in a recording: what
 /// the tests read back.
 #[cfg(test)]
@@ -325,7 +398,8 @@ mod tests {
         .unwrap();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("sub/episode.rrd");
-        let mut recorder = Recorder::create(&path, "test").unwrap();
+        let mut recorder =
+            Recorder::create(&path, "test", Some(((120, 160), RendererKind::Auto))).unwrap();
         let mut hook = |f: &HookFrame<'_>| recorder.log(f).unwrap();
         let mut policy = make().unwrap();
         let ep = run_episode(
@@ -359,6 +433,9 @@ mod tests {
             "/world/camera/depth",
             "/world/camera/segmentation",
             "/world/camera/pixel",
+            "/world/display",
+            "/world/display/color",
+            "/world/display/grasp",
             "/world/gripper",
             "/world/gripper_point",
             "/world/actions/executed",

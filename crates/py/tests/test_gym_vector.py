@@ -134,12 +134,83 @@ def test_vector_rendering_follows_gymnasium():
     assert venv.render_mode == "rgb_array" and venv.metadata["render_fps"] > 0
     venv.reset(seed=3)
     frames = venv.render()
-    assert frames.shape == (2, *RES, 3) and frames.dtype == np.uint8 and frames.max() > 0
-    with pytest.raises(ValueError, match="render_mode 'human'"):
-        gym.make_vec("umpnet/Explore-v0", num_envs=1, resolution=RES, render_mode="human")
-    env = gym.make("umpnet/Explore-v0", resolution=RES, render_mode="rgb_array")
-    env.reset(seed=0)
-    assert env.render().shape == (*RES, 3) and env.metadata["render_fps"] == venv.metadata["render_fps"]
+    # A size people watch by default, whatever the observation's.
+    assert frames.shape == (2, 480, 640, 3) and frames.dtype == np.uint8 and frames.max() > 0
+    with pytest.raises(ValueError, match="render_mode 'window'"):
+        gym.make_vec("umpnet/Explore-v0", num_envs=1, resolution=RES, render_mode="window")
+    env = gym.make("umpnet/Explore-v0", resolution=RES, render_mode="rgb_array", render_size=None)
+    obs, _ = env.reset(seed=0)
+    assert np.array_equal(env.render(), umpnet.gym.rgb(obs["image"]))
+    assert env.metadata["render_fps"] == venv.metadata["render_fps"]
+
+
+def _no_display(monkeypatch):
+    for var in ("DISPLAY", "WAYLAND_DISPLAY", "SDL_VIDEODRIVER"):
+        monkeypatch.delenv(var, raising=False)
+
+
+def test_human_mode_without_a_window_writes_each_frame_and_says_where(monkeypatch, tmp_path, caplog):
+    """render_mode='human' where no window can open (CI, a server): every
+    reset and step replaces one PNG, the first says where in a notice, and
+    render() returns None, as gymnasium's human mode does."""
+    from PIL import Image
+
+    _no_display(monkeypatch)
+    env = gym.make("umpnet/Goal-v0", resolution=(24, 32), render_mode="human", category="Door")
+    with caplog.at_level("WARNING", logger="umpnet"):
+        env.reset(seed=2)
+    path = env.unwrapped._viewer.frame_path
+    notices = [r.getMessage() for r in caplog.records if r.name == "umpnet"]
+    assert len(notices) == 1 and "no window can open, no display" in notices[0] and str(path) in notices[0]
+    assert env.unwrapped._viewer.backend == "file"
+    first = np.asarray(Image.open(path))
+    assert first.shape == (480, 640, 3)
+    pixel = np.array(env.unwrapped._env.scripted_action("oracle"))
+    env.step({"phase": 0, "pixel": pixel, "direction": np.zeros(3, np.float32)})
+    assert not np.array_equal(np.asarray(Image.open(path)), first), "the step's frame (with the gripper) was not shown"
+    assert env.render() is None
+    assert len([r for r in caplog.records if r.name == "umpnet"]) == 1, "the notice is said more than once"
+    env.close()
+    # A file asked for: no warning; the vector env shows its environments as one grid.
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+
+    frame = tmp_path / "live" / "frame.png"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        single = gym.make("umpnet/Goal-v0", resolution=(24, 32), render_mode="human", human_frame_path=frame)
+        check_env(single.unwrapped)
+        venv = gym.make_vec("umpnet/Goal-v0", num_envs=3, resolution=(24, 32), render_mode="human",
+                            render_size=(48, 64), human_frame_path=frame, category="Door")  # fmt: skip
+        venv.reset(seed=2)
+    grid = np.asarray(Image.open(frame))
+    assert grid.shape == (2 * 48, 2 * 64, 3)  # three environments in a 2 x 2 grid
+    rgb_venv = gym.make_vec("umpnet/Goal-v0", num_envs=3, resolution=(24, 32), render_mode="rgb_array",
+                            render_size=(48, 64), category="Door")  # fmt: skip
+    rgb_venv.reset(seed=2)
+    frames = rgb_venv.render()
+    assert np.array_equal(grid[:48, 64:], frames[1]) and np.array_equal(grid[48:, :64], frames[2])
+    assert not grid[48:, 64:].any(), "the empty cell is not black"
+    venv.close()
+
+
+def test_human_mode_opens_a_window_where_a_display_is(monkeypatch):
+    """With pygame and a display (SDL's dummy driver here), the frames go to a
+    window, shown as render() would return them."""
+    import pygame  # a test requirement (train_py/requirements.txt), never skipped
+
+    _no_display(monkeypatch)
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    env = gym.make("umpnet/Explore-v0", resolution=(24, 32), render_mode="human", render_size=(60, 80),
+                   category="Door")  # fmt: skip
+    env.reset(seed=1)
+    viewer = env.unwrapped._viewer
+    assert viewer.backend == "window" and viewer.frame_path is None
+    shown = pygame.surfarray.array3d(pygame.display.get_surface()).swapaxes(0, 1)
+    assert np.array_equal(shown, env.unwrapped._frame())
+    env.close()
+    assert not pygame.display.get_init(), "close() left the window open"
 
 
 def test_policy_act_drives_the_gym_environments_from_the_observation_alone():
@@ -298,8 +369,15 @@ def test_record_episode_writes_one_whole_video_per_episode(fmt, tmp_path):
     step), named in order, and says where in the last step's info."""
     from PIL import Image
 
+    small = {
+        "resolution": (24, 32),
+        "render_mode": "rgb_array",
+        "render_size": None,
+        "category": "Door",
+        "max_steps": 3,
+    }
     env = umpnet.gym.RecordEpisode(
-        gym.make("umpnet/Explore-v0", resolution=(24, 32), render_mode="rgb_array", category="Door", max_steps=3),
+        gym.make("umpnet/Explore-v0", **small),
         tmp_path / "videos",
         format=fmt,
         scale=2,

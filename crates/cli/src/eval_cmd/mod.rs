@@ -128,6 +128,10 @@ pub struct EvalArgs {
     /// With --rrd: record scenes 0..N of each category (of this shard), for every policy.
     #[arg(long, default_value_t = 1, requires = "rrd")]
     pub rrd_per_category: u32,
+    /// With --rrd: the size of the recordings' display view (`world/display`),
+    /// HEIGHTxWIDTH, whatever the policies see (`world/camera`).
+    #[arg(long, default_value = "480x640", value_parser = crate::parse_resolution, requires = "rrd")]
+    pub picture_size: (u32, u32),
 }
 
 fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
@@ -386,7 +390,13 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
     };
     finish(ctx, &report, a.out.as_deref(), scenes)?;
     if let Some(dir) = &a.rrd {
-        let n = record(&cfg, &policies, &evaluated, dir, a.rrd_per_category)?;
+        let n = record(
+            &cfg,
+            &policies,
+            &evaluated,
+            dir,
+            (a.rrd_per_category, a.picture_size),
+        )?;
         if !ctx.json {
             outln!("recorded {n} episodes to {}", dir.display());
         }
@@ -401,7 +411,7 @@ fn record(
     policies: &[(String, PolicyFactory)],
     evaluated: &[(Scored, String)],
     dir: &Path,
-    per_category: u32,
+    (per_category, picture_size): (u32, (u32, u32)),
 ) -> Result<usize> {
     let mut n = 0;
     let per_row = per_category.min(cfg.episodes_per_category);
@@ -414,7 +424,11 @@ fn record(
     for (row, k) in mine {
         for (name, make) in policies {
             let path = dir.join(format!("{row}_{k}_{name}.rrd"));
-            let mut recorder = crate::rrd::Recorder::create(&path, &format!("{name}: {row} #{k}"))?;
+            let mut recorder = crate::rrd::Recorder::create(
+                &path,
+                &format!("{name}: {row} #{k}"),
+                Some((picture_size, cfg.renderer)),
+            )?;
             let mut failed: Option<anyhow::Error> = None;
             let mut hook = |h: &umpnet_eval::episode::HookFrame<'_>| {
                 if failed.is_none()

@@ -23,9 +23,12 @@ A grasp on nothing movable (or, in the goal task, on the wrong part) ends the
 episode. The direction budget is the category's (the paper's), unless
 ``max_steps`` is given. ``info`` carries ``success`` and ``elapsed_steps``.
 
-``render_size=(height, width)`` makes ``render()`` draw the scene again at
-that size (gripper included), for videos people watch; by default it is the
-observation's colour at the observation's size.
+``render()`` draws the scene again at ``render_size=(height, width)``
+(480x640 by default, gripper included), whatever the observation's
+resolution, for videos people watch; ``render_size=None`` returns the
+observation's own colour instead. ``render_mode="human"`` shows each frame as
+it comes, in a window when one can open, else in a PNG file it names once
+(``umpnet.viewer``; ``human_frame_path=`` picks the file).
 
 ``obs_mode`` chooses what the agent observes: ``image`` (the default, what
 ``umpnet.Policy`` reads), ``rgbd``, ``pointcloud`` or ``state``
@@ -50,6 +53,7 @@ from gymnasium.vector.utils import batch_space
 from . import obs_modes
 from ._umpnet import Env, VecEnv, categories, score_step
 from .record import RecordEpisode
+from .viewer import Viewer, tile
 
 __all__ = ["RecordEpisode", "UmpnetEnv", "UmpnetVectorEnv", "score"]
 
@@ -78,6 +82,18 @@ def score(task, before, after, start, farthest, lower, upper, threshold, goal):
 
 # One frame per action: a recording plays an episode at a readable pace.
 RENDER_FPS = 4
+# What render() draws unless told: a size people watch (HEIGHT, WIDTH).
+RENDER_SIZE = (480, 640)
+RENDER_MODES = ["human", "rgb_array"]
+
+
+def check_render(render_mode, render_size):
+    """The validated render size, (h, w) or None; a bad mode or size is a ValueError."""
+    if render_mode not in (None, *RENDER_MODES):
+        raise ValueError(f"render_mode {render_mode!r}: expected None, 'human' or 'rgb_array'")
+    if render_size is None:
+        return None
+    return int(render_size[0]), int(render_size[1])
 
 
 def rgb(image) -> np.ndarray:
@@ -86,16 +102,18 @@ def rgb(image) -> np.ndarray:
 
 
 class UmpnetEnv(gym.Env):
-    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": RENDER_FPS}
+    metadata: ClassVar[dict] = {"render_modes": RENDER_MODES, "render_fps": RENDER_FPS}
 
     def __init__(
         self, task="exploration", max_steps=None, resolution=(96, 128), render_mode=None, obs_mode="image",
-        render_size=None, **env_kwargs,
+        render_size=RENDER_SIZE, human_frame_path=None, **env_kwargs,
     ):  # fmt: skip
         self.task, self.max_steps, self.render_mode = task, max_steps, render_mode
         self.obs_mode = obs_modes.check(obs_mode)
         # render() at (height, width), drawn again at that size; None: the observation's colour.
-        self.render_size = None if render_size is None else (int(render_size[0]), int(render_size[1]))
+        self.render_size = check_render(render_mode, render_size)
+        title = f"umpnet {task}"
+        self._viewer = Viewer(title, RENDER_FPS, human_frame_path) if render_mode == "human" else None
         h, w = resolution
         self._seed = env_kwargs.pop("seed", 0)
         env_kwargs.setdefault("copy", True)
@@ -145,6 +163,7 @@ class UmpnetEnv(gym.Env):
         self._phase, self._t = 0, 0
         self._scene = self._env.scene
         self._grasp = {}
+        self._show()
         return self._observation(self._obs), {"scene": self._scene, "success": False, "elapsed_steps": 0}
 
     def step(self, action):
@@ -161,6 +180,7 @@ class UmpnetEnv(gym.Env):
                     "limits": info["limits"],
                     "threshold": info["threshold"],
                 }
+            self._show()
             return self._observation(self._obs), 0.0, terminated, False, {**info, "success": False, "elapsed_steps": 0}
         direction = np.asarray(action["direction"], dtype=np.float32)
         if not np.all(np.isfinite(direction)) or np.linalg.norm(direction) < 1e-6:
@@ -170,6 +190,7 @@ class UmpnetEnv(gym.Env):
         reward, success, terminated = self._score(info)
         truncated = not terminated and self._t >= self._budget()
         info = {**info, **labels, "success": success, "elapsed_steps": self._t}
+        self._show()
         return self._observation(self._obs), reward, terminated, truncated, info
 
     def _score(self, info):
@@ -192,12 +213,28 @@ class UmpnetEnv(gym.Env):
         g["farthest"] = float(farthest)
         return float(reward), bool(success), bool(success)
 
-    def render(self):
-        if self._obs is None:
-            return None
+    def _frame(self):
         if self.render_size is not None:
             return self._env.render_rgb(*self.render_size)
         return rgb(self._obs["image"])
+
+    def _show(self):
+        """In human mode, every reset and step shows its frame (gymnasium's rule)."""
+        if self._viewer is not None:
+            self._viewer.show(self._frame())
+
+    def render(self):
+        if self._obs is None:
+            return None
+        if self._viewer is not None:
+            self._viewer.show(self._frame())
+            return None
+        return self._frame()
+
+    def close(self):
+        if self._viewer is not None:
+            self._viewer.close()
+        super().close()
 
 
 class UmpnetVectorEnv(VectorEnv):
@@ -215,7 +252,7 @@ class UmpnetVectorEnv(VectorEnv):
     """
 
     metadata: ClassVar[dict] = {
-        "render_modes": ["rgb_array"],
+        "render_modes": RENDER_MODES,
         "render_fps": RENDER_FPS,
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
@@ -229,14 +266,15 @@ class UmpnetVectorEnv(VectorEnv):
         resolution=(96, 128),
         render_mode=None,
         obs_mode="image",
-        render_size=None,
+        render_size=RENDER_SIZE,
+        human_frame_path=None,
         **env_kwargs,
     ):
         self.obs_mode = obs_modes.check(obs_mode)
-        self.render_size = None if render_size is None else (int(render_size[0]), int(render_size[1]))
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
+        self.render_size = check_render(render_mode, render_size)
         self.render_mode = render_mode
+        title = f"umpnet {task}, {num_envs} environments"
+        self._viewer = Viewer(title, RENDER_FPS, human_frame_path) if render_mode == "human" else None
         self._last = None
         if task not in ("exploration", "goal"):
             raise ValueError(f"task {task!r}: expected 'exploration' or 'goal'")
@@ -282,6 +320,7 @@ class UmpnetVectorEnv(VectorEnv):
         self._budget[:] = [BUDGETS.get(s.get("category"), 10) for s in self._vec.scenes]
         info = {"success": np.zeros(n, bool), "elapsed_steps": np.zeros(n, np.int64)}
         self._last = obs
+        self._show()
         return self._observation(obs), info
 
     def step(self, actions):
@@ -342,16 +381,32 @@ class UmpnetVectorEnv(VectorEnv):
             **{k: raw[k] for k in ("valid", "joint", "joint_before", "joint_after", "r_dist", "aot", "suction_lost")},
         }
         self._last = obs
+        self._show()
         return self._observation(obs), reward, terminated, truncated, info
 
-    def render(self):
-        """Each environment's current colour image, (num_envs, H, W, 3) uint8
-        (drawn again at ``render_size`` when it is given)."""
-        if self._last is None:
-            return None
+    def _frames(self):
         if self.render_size is not None:
             return self._vec.render_rgb(*self.render_size)
         return rgb(self._last["image"])
+
+    def _show(self):
+        if self._viewer is not None:
+            self._viewer.show(tile(self._frames()))
+
+    def render(self):
+        """Each environment's current colour image, (num_envs, H, W, 3) uint8,
+        drawn again at ``render_size`` unless it is None. In human mode they
+        are shown as one grid and this returns None."""
+        if self._last is None:
+            return None
+        if self._viewer is not None:
+            self._show()
+            return None
+        return self._frames()
+
+    def close_extras(self, **kwargs):
+        if self._viewer is not None:
+            self._viewer.close()
 
     def __repr__(self):
         return f"UmpnetVectorEnv(num_envs={self.num_envs}, task={self.task!r})"
