@@ -570,6 +570,43 @@ def test_a_bad_preset_or_learner_is_a_usage_error_not_a_traceback(capsys):
     assert "unknown preset 'tiny'" in err and "--learner: invalid choice: 'fp16'" in err, err
 
 
+def test_a_config_file_sits_between_the_preset_and_the_flags_and_repeats_a_run(tmp_path, capsys):
+    """`--config FILE` (TOML or JSON): over the preset, under the flags. A run's
+    config.json and a package's model.json give back the config they record;
+    a wrong field or value is a usage error naming the file and the field."""
+    toml = tmp_path / "run.toml"
+    toml.write_text('preset = "smoke"\nepochs = 7\ndirection_widths = [8, 16]\nlr = 1\ncategories = ["Door"]\n')
+    cfg, args = train.parse_args(["--config", str(toml), "--out", "x", "--epochs", "9"])
+    smoke = make_config("smoke")
+    assert args.preset == "smoke" and cfg.epochs == 9 and cfg.direction_widths == (8, 16)
+    assert cfg.lr == 1.0 and isinstance(cfg.lr, float) and cfg.categories == ["Door"]
+    assert cfg.height == smoke.height and cfg.seq_max == smoke.seq_max  # the rest is the preset's
+    # A run writes its whole config; --config on it makes the same Config.
+    out = tmp_path / "run"
+    assert train.main(["--config", str(toml), "--epochs", "1", "--out", str(out)]) == 0
+    again, _ = train.parse_args(["--config", str(out / "config.json"), "--out", "y"])
+    assert again == dataclasses.replace(cfg, epochs=1)
+    shipped, _ = train.parse_args(["--config", str(ROOT / "models" / "umpnet-small" / "model.json"), "--out", "z"])
+    recorded = json.loads((ROOT / "models" / "umpnet-small" / "model.json").read_text())["config"]
+    assert shipped.epochs == recorded["epochs"] and list(shipped.direction_widths) == recorded["direction_widths"]
+    for text, message in (
+        ("epoch = 3", "unknown field 'epoch'; did you mean 'epochs'?"),
+        ('epochs = "3"', "epochs '3': expected int"),
+        ("adam_betas = [0.9]", "adam_betas [0.9]: expected a list of 2 floats"),
+        ("epochs =", "not valid TOML"),
+        ('preset = "tiny"', "preset 'tiny': expected one of"),
+    ):
+        toml.write_text(text + "\n")
+        with pytest.raises(SystemExit) as e:
+            train.parse_args(["--config", str(toml), "--out", "x"])
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert f"--config {toml}: {message}" in err, err
+    with pytest.raises(SystemExit):
+        train.parse_args(["--config", str(tmp_path / "missing.json"), "--out", "x"])
+    assert "cannot read it" in capsys.readouterr().err
+
+
 def test_the_paper_direction_net_is_the_papers_and_exports_the_same_contract(tmp_path):
     """`--direction-net paper` (the paper preset's): seven conv stages to a
     flattened 512 x 7 x 10 map at 480 x 640, 256 features per branch, an action

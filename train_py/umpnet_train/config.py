@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import json
+import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 # The closed sets a field may take, checked by make_config and offered as
 # the command line's choices.
@@ -239,6 +243,79 @@ def config_from_checkpoint(saved: dict) -> Config:
     tuples = {f.name for f in dataclasses.fields(Config) if isinstance(f.default, tuple)}
     values = {k: tuple(v) if k in tuples and isinstance(v, list) else v for k, v in saved.items()}
     return Config(**{**_BEFORE_FIELDS, **values})
+
+
+def read_config_file(path) -> dict:
+    """The Config fields (and optionally `preset`) a TOML or JSON file sets; a
+    model package's model.json, or a run's config.json, gives the config it
+    recorded. Every error names the file and the field."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as e:
+        raise ValueError(f"--config {path}: cannot read it ({getattr(e, 'strerror', None) or e})") from e
+    try:
+        if path.suffix == ".toml":
+            import tomllib
+
+            data = tomllib.loads(text)
+        else:
+            data = json.loads(text)
+    except ValueError as e:  # tomllib.TOMLDecodeError and json.JSONDecodeError are ValueErrors
+        kind = "TOML" if path.suffix == ".toml" else "JSON (a .toml name reads TOML)"
+        raise ValueError(f"--config {path}: not valid {kind}: {e}") from e
+    if isinstance(data, dict) and data.get("format") == "umpnet-model":
+        data = data.get("config")
+    if not isinstance(data, dict):
+        raise ValueError(f"--config {path}: expected a table of config fields, e.g. epochs = 300")
+    fields = {f.name: f for f in dataclasses.fields(Config)}
+    values = {}
+    for name, value in data.items():
+        if name == "preset":
+            if value not in PRESETS:
+                raise ValueError(f"--config {path}: preset {value!r}: expected one of {sorted(PRESETS)}")
+            values[name] = value
+            continue
+        if name not in fields:
+            close = difflib.get_close_matches(name, list(fields) + ["preset"], n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise ValueError(f"--config {path}: unknown field {name!r}{hint}")
+        values[name] = _typed(path, fields[name], value)
+    return values
+
+
+def _typed(path, f, value):
+    """A file's value as the field's type, or a ValueError naming both."""
+    kind = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+
+    def number(v, item):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            return None
+        if item is int:
+            return v if isinstance(v, int) else None
+        return float(v) if math.isfinite(v) else None
+
+    if kind == "bool":
+        ok = value if isinstance(value, bool) else None
+    elif kind == "list[str]":
+        ok = value if isinstance(value, list) and all(isinstance(v, str) for v in value) else None
+    elif kind.startswith("tuple"):
+        item = float if "float" in kind else int
+        size = None if "..." in kind else kind.count(",") + 1
+        items = [number(v, item) for v in value] if isinstance(value, list) else [None]
+        ok = tuple(items) if items and None not in items and size in (None, len(items)) else None
+    elif kind in ("int", "float"):
+        ok = number(value, int if kind == "int" else float)
+    else:
+        ok = value if isinstance(value, str) else None
+    if ok is None:
+        expected = kind
+        if kind.startswith(("tuple", "list")):
+            item = "float" if "float" in kind else "int" if "int" in kind else "string"
+            size = "" if "..." in kind or kind.startswith("list") else f"{kind.count(',') + 1} "
+            expected = f"a list of {size}{item}s"
+        raise ValueError(f"--config {path}: {f.name} {value!r}: expected {expected}")
+    return ok
 
 
 def add_config_arguments(parser) -> None:

@@ -31,7 +31,14 @@ from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
 from .collect import TRAIN_CATEGORIES, collect, device, sequence_length, set_device, to_long, to_torch
-from .config import LEARNER_MODES, add_config_arguments, config_from_checkpoint, config_overrides, make_config
+from .config import (
+    LEARNER_MODES,
+    add_config_arguments,
+    config_from_checkpoint,
+    config_overrides,
+    make_config,
+    read_config_file,
+)
 from .export import export_model
 from .models import UMPNet, UNet
 from .replay import DenseReplay, Replay
@@ -228,7 +235,14 @@ def git_commit() -> str:
 
 def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--preset", default="cpu-small", help="paper, cpu-small or smoke")
+    p.add_argument("--preset", help="paper, cpu-small (the default) or smoke")
+    p.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE",
+        help="config fields from a TOML or JSON file (a run's config.json, or a package's model.json, "
+        "repeats that run): over the preset, under the flags",
+    )
     p.add_argument("--out", type=Path, required=True, help="run directory: checkpoints and TensorBoard logs")
     p.add_argument("--export", type=Path, help="write the final model package here")
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
@@ -264,7 +278,10 @@ def parse_args(argv=None):
     if a.ray and a.aux_fields:
         p.error("--aux-fields collects the fields in this process: use it without --ray")
     try:
-        overrides = config_overrides(a)
+        from_file = read_config_file(a.config) if a.config else {}
+        a.preset = a.preset or from_file.pop("preset", None) or "cpu-small"
+        from_file.pop("preset", None)
+        overrides = {**from_file, **config_overrides(a)}
         if a.position_from is not None:
             overrides["freeze_position"] = True
         cfg = make_config(a.preset, **overrides)
@@ -314,6 +331,10 @@ def main(argv=None) -> int:
     cfg, args = parse_args(argv)
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
+    # The whole configuration, so that `--config OUT/config.json` repeats the run.
+    partial = out / "config.json.partial"
+    partial.write_text(json.dumps({"preset": args.preset, **dataclasses.asdict(cfg)}, indent=2) + "\n")
+    partial.replace(out / "config.json")
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(cfg.threads)
     rng = np.random.default_rng(cfg.seed)
