@@ -119,14 +119,9 @@ pub fn parse_resolution(s: &str) -> std::result::Result<(u32, u32), String> {
     let (h, w) = s
         .split_once('x')
         .ok_or_else(|| format!("`{s}`: expected HEIGHTxWIDTH, e.g. 480x640"))?;
-    let p = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|v| (8..=4096).contains(v))
-    };
-    match (p(h), p(w)) {
-        (Some(h), Some(w)) => {
+    let p = |v: &str| v.trim().parse::<i64>().unwrap_or(-1);
+    match umpnet_sim::camera::image_size(p(h), p(w)) {
+        Some((h, w)) => {
             if w < h {
                 // Cameras are wider than tall; 640x480 here is a portrait image.
                 eprintln!(
@@ -136,8 +131,9 @@ pub fn parse_resolution(s: &str) -> std::result::Result<(u32, u32), String> {
             }
             Ok((h, w))
         }
-        _ => Err(format!(
-            "`{s}`: height and width must be integers in 8..=4096"
+        None => Err(format!(
+            "`{s}`: height and width must be integers in {:?}",
+            umpnet_sim::camera::IMAGE_SIDES
         )),
     }
 }

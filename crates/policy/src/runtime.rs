@@ -23,7 +23,11 @@ fn versioned_library(dir: &Path) -> Option<PathBuf> {
         })
 }
 
-fn in_site_packages(site: &Path) -> Option<PathBuf> {
+/// The ONNX Runtime library of the `onnxruntime` package in a Python
+/// `site-packages` folder (the exact version this build expects, else another
+/// `libonnxruntime.so.1.*`), if it is there. Python's `umpnet.Policy` asks
+/// this of its own interpreter's folder.
+pub fn library_in_site_packages(site: &Path) -> Option<PathBuf> {
     let capi = site.join("onnxruntime").join("capi");
     let exact = capi.join(ORT_LIBRARY);
     if exact.is_file() {
@@ -38,7 +42,7 @@ fn venv_library(dir: &Path) -> Option<PathBuf> {
         let lib = d.join(".venv").join("lib");
         if let Ok(entries) = std::fs::read_dir(&lib) {
             for e in entries.flatten() {
-                if let Some(p) = in_site_packages(&e.path().join("site-packages")) {
+                if let Some(p) = library_in_site_packages(&e.path().join("site-packages")) {
                     return Some(p);
                 }
             }
@@ -65,7 +69,7 @@ fn python_library() -> Option<PathBuf> {
     if !out.status.success() {
         return None;
     }
-    in_site_packages(Path::new(String::from_utf8_lossy(&out.stdout).trim()))
+    library_in_site_packages(Path::new(String::from_utf8_lossy(&out.stdout).trim()))
 }
 
 /// Where the library would be loaded from, in order: `explicit`, `ORT_DYLIB_PATH`,

@@ -70,11 +70,11 @@ impl EnvConfig {
                 )));
             }
         };
-        // Taken as signed so that a negative size is this message, not an OverflowError.
-        let size = |v: i64| u32::try_from(v).ok().filter(|v| (8..=4096).contains(v));
-        let (Some(height), Some(width)) = (size(resolution.0), size(resolution.1)) else {
+        let Some((height, width)) = umpnet_sim::camera::image_size(resolution.0, resolution.1)
+        else {
             return Err(PyValueError::new_err(format!(
-                "resolution {resolution:?}: expected (height, width), each in 8..=4096"
+                "resolution {resolution:?}: expected (height, width), each in {:?}",
+                umpnet_sim::camera::IMAGE_SIDES
             )));
         };
         let mut cfg = train_env::EnvConfig::new(task, split);

@@ -10,15 +10,14 @@ use umpnet_eval::train_env::TrainEnv;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::SimEnv;
 
-/// (height, width) each in 8..=4096, or a ValueError naming them.
+/// (height, width) each in `IMAGE_SIDES`, or a ValueError naming them.
 pub(crate) fn size(height: i64, width: i64) -> PyResult<(u32, u32)> {
-    let side = |v: i64| u32::try_from(v).ok().filter(|v| (8..=4096).contains(v));
-    match (side(height), side(width)) {
-        (Some(h), Some(w)) => Ok((h, w)),
-        _ => Err(PyValueError::new_err(format!(
-            "render size ({height}, {width}): expected (height, width), each in 8..=4096"
-        ))),
-    }
+    umpnet_sim::camera::image_size(height, width).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "render size ({height}, {width}): expected (height, width), each in {:?}",
+            umpnet_sim::camera::IMAGE_SIDES
+        ))
+    })
 }
 
 /// `env`'s current state at `(h, w)` as H x W x 3 colour.

@@ -19,6 +19,13 @@ use umpnet_policy::cem::Mode;
 use umpnet_policy::memory::EpisodeMemory;
 use umpnet_policy::{DecisionInput, ModelPackage, UmpnetPolicy};
 
+/// The ONNX Runtime library of the `onnxruntime` package installed in the
+/// `site` folder, by the runtime's own rule, or None.
+#[pyfunction]
+pub(crate) fn onnxruntime_in_site_packages(site: PathBuf) -> Option<PathBuf> {
+    umpnet_policy::runtime::library_in_site_packages(&site)
+}
+
 /// The Rust policy runtime on a model package.
 #[pyclass(module = "umpnet", subclass, name = "Policy")]
 pub(crate) struct Policy {

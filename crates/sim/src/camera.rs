@@ -1,6 +1,19 @@
 //! The pinhole camera of the protocol, OpenCV convention (x right, y down, z forward).
 use crate::math::{Mat3, Pose3, Quat, Vec3};
 
+/// The image sides (pixels) the interfaces accept, for the policy's view and
+/// for pictures alike: from 8 (the smallest image normals and a U-Net's
+/// pooling make sense of) to 4096 (the renderers' limit).
+pub const IMAGE_SIDES: std::ops::RangeInclusive<u32> = 8..=4096;
+
+/// `(height, width)` when both are in [`IMAGE_SIDES`]; taken as `i64`, so that
+/// a negative or huge value from Python or the command line is None, not an
+/// overflow. Callers word the error for their own flag or argument.
+pub fn image_size(height: i64, width: i64) -> Option<(u32, u32)> {
+    let side = |v: i64| u32::try_from(v).ok().filter(|v| IMAGE_SIDES.contains(v));
+    Some((side(height)?, side(width)?))
+}
+
 /// A camera looking from `eye` at `target`: the image size, the field of view
 /// and the depth range.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -88,5 +101,14 @@ mod tests {
             .world_from_camera()
             .inverse_transform_point(Vec3::new(0.0, 0.0, 0.5));
         assert!(q.y / q.z < p.y / p.z);
+    }
+
+    #[test]
+    fn image_sizes_outside_the_sides_are_refused_without_overflow() {
+        assert_eq!(image_size(8, 4096), Some((8, 4096)));
+        assert_eq!(image_size(480, 640), Some((480, 640)));
+        for (h, w) in [(7, 64), (64, 4097), (-1, 64), (64, 1 << 40), (i64::MIN, 8)] {
+            assert_eq!(image_size(h, w), None, "{h}x{w}");
+        }
     }
 }

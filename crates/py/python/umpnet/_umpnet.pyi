@@ -1,4 +1,5 @@
 import os
+import pathlib
 from collections.abc import Sequence
 from typing import Any, TypeAlias
 
@@ -117,3 +118,5 @@ class Articulation:
     def move_gripper(self, direction: Sequence[float], joint: str) -> dict[str, Any]: ...
 
 __version__: str
+
+def onnxruntime_in_site_packages(site: str | os.PathLike[str]) -> pathlib.Path | None: ...

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ._umpnet import Policy as _Policy
+from ._umpnet import onnxruntime_in_site_packages
 
 # The shipped model package: inside the wheel, or a link to models/umpnet-small
 # in a source checkout.
@@ -24,9 +25,10 @@ def onnxruntime_library() -> Path | None:
     if spec is None or not spec.submodule_search_locations:
         return None
     for root in spec.submodule_search_locations:
-        libraries = sorted((Path(root) / "capi").glob("libonnxruntime.so.1.*"))
-        if libraries:
-            return libraries[-1]
+        # Which file in the package is the Rust runtime's rule, as for its own searches.
+        library = onnxruntime_in_site_packages(Path(root).parent)
+        if library is not None:
+            return Path(library)
     return None
 
 
