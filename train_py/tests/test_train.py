@@ -463,6 +463,48 @@ def test_training_with_auxiliary_fields_runs_and_exports_the_same_package_contra
         train.parse_args(["--out", str(out), "--aux-fields", "1", "--ray", "2"])
 
 
+def test_scaled_flow_training_and_the_single_frame_joint_fit(tmp_path):
+    """`--aux-flow scaled`: the fields head learns flow x relative speed (a
+    squared error, not a cosine), and frame_joint's rigid fit recovers a
+    hinge's axis and origin, or a slide's axis, from such flow; from unit flow
+    on a flat part no hinge can be told, and it says prismatic."""
+    import torch
+    from umpnet_train import frame_joint
+
+    # The fit on exact flows: a hinge along z through (0.3, 0.1, 0), a slide along x.
+    rng = np.random.default_rng(0)
+    points = np.c_[rng.uniform(0.35, 0.9, 200), np.full(200, 0.1), rng.uniform(0.1, 0.8, 200)]
+    axis, origin = np.array([0.0, 0.0, 1.0]), np.array([0.3, 0.1, 0.0])
+    velocity = np.cross(axis, points - origin)
+    hinge = frame_joint.fit_joint(points, velocity / np.linalg.norm(velocity, axis=1).max())
+    assert hinge["type"] == "revolute" and frame_joint.angle_deg(hinge["axis"], axis) < 1e-3
+    assert np.allclose(hinge["origin"][:2], origin[:2], atol=1e-6)
+    unit = velocity / np.linalg.norm(velocity, axis=1, keepdims=True)  # the same vector on a flat door
+    assert frame_joint.fit_joint(points, unit)["type"] == "prismatic"
+    slide = frame_joint.fit_joint(points, np.tile([0.8, 0.0, 0.0], (200, 1)) + rng.normal(0, 0.01, (200, 3)))
+    assert slide["type"] == "prismatic" and frame_joint.angle_deg(slide["axis"], np.array([1.0, 0, 0])) < 2
+
+    # The scaled target reaches the loss as a squared error.
+    target = np.zeros((1, 4, 4, 3), np.float32)
+    target[0, 1, 1] = [0.5, 0.0, 0.0]
+    pred = torch.zeros(1, 3, 4, 4)
+    out = {}
+    train.flow_losses(pred, target, out, "p_", scaled=True)
+    assert float(out["loss/p_flow"]) == pytest.approx(0.25)
+    train.flow_losses(pred, target, out, "p_", scaled=False)
+    assert float(out["loss/p_flow"]) == pytest.approx(1.0)  # 1 - cosine of a zero prediction
+
+    run = tmp_path / "run"
+    args = ["--preset", "smoke", "--epochs", "2", "--aux-fields", "1", "--aux-flow", "scaled", "--out", str(run)]
+    assert train.main(args) == 0
+    report = frame_joint.measure(run / "checkpoint.pt", "test", 1)
+    assert report["all"]["n"] >= 5 and 0 <= report["all"]["median_axis_error_deg"] <= 90
+    with pytest.raises(ValueError, match="without --aux-fields"):
+        plain = tmp_path / "plain"
+        assert train.main(["--preset", "smoke", "--epochs", "1", "--out", str(plain)]) == 0
+        frame_joint.measure(plain / "checkpoint.pt", "test", 1)
+
+
 def _dense_data(cfg, seed: int, sequences: int):
     """Replay buffers filled the way training fills them (random grasps on the
     object, random and probed directions, the reference's labels)."""

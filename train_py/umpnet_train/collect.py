@@ -192,6 +192,14 @@ def dense_directions(ranked: np.ndarray, k: int, rng) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate([ranked[:, :best], rand], axis=1), dtype=np.float32)
 
 
+def flow_target(env, cfg):
+    """The articulation flow the auxiliary heads learn, per environment (n x H x W x 3)."""
+    fields = env.articulation_fields()
+    if cfg.aux_flow == "scaled":
+        return fields["flow"] * fields["speed"][..., None]
+    return fields["flow"]
+
+
 def collect(env, model, cfg, replay, dense, epoch, rng, stats):
     """One sequence per environment: a position, then up to L directions under
     the contradictory policy."""
@@ -206,7 +214,7 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
     # The environment's observation buffers are rewritten by every step: keep copies.
     first = obs["image"].copy()
     fields = cfg.aux_fields > 0
-    first_flow = env.articulation_fields()["flow"] if fields else None
+    first_flow = flow_target(env, cfg) if fields else None
     t0 = time.perf_counter()
     obs, info = env.step_position(pixels)
     stats["sim_s"] += time.perf_counter() - t0
@@ -229,7 +237,7 @@ def collect(env, model, cfg, replay, dense, epoch, rng, stats):
         data = data_policy(cfg.inverse_data, (cfg.height, cfg.width), cfg.seed) if cfg.inverse_data else None
         dirs, ranked = choose_directions(model, cfg.variant, obs, wanted, eps_dir, rng, data=data)
         before = {"image": obs["image"].copy(), "gripper_pixel": obs["gripper_pixel"].copy()}
-        before_flow = env.articulation_fields()["flow"] if fields else None
+        before_flow = flow_target(env, cfg) if fields else None
         if dense is not None:
             t0 = time.perf_counter()
             probe_dirs = dense_directions(ranked, cfg.dense_labels, rng)

@@ -78,6 +78,13 @@ class Config:
         "position net learns each pixel's flow and movable mask, the direction encoder's embedding the "
         "flow (0: off, the paper)",
     )
+    aux_flow: str = option(
+        "unit",
+        "with --aux-fields: the flow target, unit (each point's direction of motion) or scaled (times "
+        "its speed relative to its part's fastest point: FlowBot3D's normalised flow, from which one "
+        "frame locates a hinge; the position net's head learns it with a squared error)",
+        choices=("unit", "scaled"),
+    )
     inverse_data: str = option(
         "",
         "variant inverse: a model package whose policy makes the collected moves (epsilon-greedy, "
@@ -267,7 +274,8 @@ def read_config_file(path) -> dict:
     if isinstance(data, dict) and data.get("format") == "umpnet-model":
         data = data.get("config")
     if not isinstance(data, dict):
-        raise ValueError(f"--config {path}: expected a table of config fields, e.g. epochs = 300")
+        # A file's content, not a caller's type: the usage error every config mistake is.
+        raise ValueError(f"--config {path}: expected a table of config fields, e.g. epochs = 300")  # noqa: TRY004
     fields = {f.name: f for f in dataclasses.fields(Config)}
     values = {}
     for name, value in data.items():

@@ -78,15 +78,20 @@ def direction_losses(cfg, pred_dist, logits, dist, aot, weights, prefix, out):
     return total
 
 
-def flow_losses(pred_flow, flow, out, prefix, pred_movable=None):
-    """Auxiliary articulation losses: 1 - cosine between predicted and true flow
-    on movable pixels, and, with `pred_movable`, the movable mask (BCE)."""
+def flow_losses(pred_flow, flow, out, prefix, pred_movable=None, scaled=False):
+    """Auxiliary articulation losses on movable pixels: 1 - cosine between
+    predicted and true flow (unit flow), or their squared error (scaled flow,
+    whose length carries each point's relative speed); and, with
+    `pred_movable`, the movable mask (BCE)."""
     target = to_torch(flow).permute(0, 3, 1, 2)  # N x 3 x H x W
-    movable = target.norm(dim=1) > 0.5
+    movable = target.norm(dim=1) > 1e-6
     total = torch.zeros((), device=device())
     if movable.any():
         cos = F.cosine_similarity(pred_flow, target, dim=1, eps=1e-6)[movable]
-        out[f"loss/{prefix}flow"] = (1.0 - cos).mean()
+        if scaled:
+            out[f"loss/{prefix}flow"] = (pred_flow - target).pow(2).sum(dim=1)[movable].mean()
+        else:
+            out[f"loss/{prefix}flow"] = (1.0 - cos).mean()
         out[f"metric/{prefix}flow_cosine"] = cos.mean().detach()
         total = total + out[f"loss/{prefix}flow"]
     if pred_movable is not None:
@@ -102,7 +107,9 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
     imgs, pix, lab, *pos_flow = replay.sample_positions(rng, cfg.batch_position, flows=fields)
     if train_position and len(lab) and fields:
         logits, aux = model.position.forward_fields(to_torch(imgs))
-        total = total + cfg.aux_fields * flow_losses(aux[:, :3], pos_flow[0], out, "position_", aux[:, 3])
+        total = total + cfg.aux_fields * flow_losses(
+            aux[:, :3], pos_flow[0], out, "position_", aux[:, 3], cfg.aux_flow == "scaled"
+        )
     elif train_position and len(lab):
         logits = model.position(to_torch(imgs))
     if train_position and len(lab):
@@ -129,7 +136,9 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
         obs_t, refs_t, pix_t = to_torch(imgs), to_torch(refs), to_long(pix)
         if fields:
             de, ae, pred_flow = model.encoder.forward_fields(obs_t, refs_t, pix_t)
-            total = total + cfg.aux_fields * flow_losses(pred_flow, dir_flow[0], out, "direction_")
+            total = total + cfg.aux_fields * flow_losses(
+                pred_flow, dir_flow[0], out, "direction_", scaled=cfg.aux_flow == "scaled"
+            )
         else:
             de, ae = model.encoder(obs_t, refs_t, pix_t)
         pred_dist, logits = model.decoder(de, ae, to_torch(dirs))

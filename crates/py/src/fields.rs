@@ -7,7 +7,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use umpnet_sim::fields::ArticulationFields;
 
-/// `flow` (n, H, W, 3) float32, `joint` (n, H, W) int32, `movable` (n, H, W)
+/// `flow` (n, H, W, 3) float32, `speed` (n, H, W) float32 (relative to each
+/// part's fastest point), `joint` (n, H, W) int32, `movable` (n, H, W)
 /// bool and `goal_displacement` (n, H, W, 3) float32, or None when no scene
 /// has a goal (exploration).
 pub(crate) fn fields_dict<'py>(
@@ -41,6 +42,11 @@ pub(crate) fn fields_dict<'py>(
     let d = PyDict::new(py);
     let flow = flat3(&|f| Some(&f.flow_in_world));
     d.set_item("flow", flow.into_pyarray(py).reshape(shape3)?)?;
+    let speed: Vec<f32> = fields
+        .iter()
+        .flat_map(|f| f.speed.iter().copied())
+        .collect();
+    d.set_item("speed", speed.into_pyarray(py).reshape([n, h, w])?)?;
     let joint: Vec<i32> = fields
         .iter()
         .flat_map(|f| f.joint.iter().copied())

@@ -23,6 +23,12 @@ pub struct ArticulationFields {
     /// Zero on fixed parts, the floor, the gripper and the background, and on
     /// a hinge's own axis.
     pub flow_in_world: Vec<[f32; 3]>,
+    /// How fast each pixel's point moves for a given joint speed, relative to
+    /// the fastest point of its part in this frame (FlowBot3D's normalised
+    /// flow is `speed × flow`): the distance from the hinge axis over the
+    /// largest such distance among the part's pixels, 1 on a slider, 0 where
+    /// `flow_in_world` is zero. With it a single frame locates a hinge.
+    pub speed: Vec<f32>,
     /// The joint that moves each pixel's part (the one a grasp there would
     /// move), or -1.
     pub joint: Vec<i32>,
@@ -84,6 +90,7 @@ impl SimEnv {
             None => None,
         };
         let mut flow = vec![[0.0f32; 3]; n];
+        let mut speed = vec![0.0f32; n];
         let mut joint = vec![-1i32; n];
         let mut goal = goal_from_now.as_ref().map(|_| vec![[0.0f32; 3]; n]);
         for row in 0..frame.height {
@@ -114,21 +121,35 @@ impl SimEnv {
                 };
                 let v = match kind {
                     JointKind::Prismatic => axis,
-                    JointKind::Revolute | JointKind::Continuous => {
-                        axis.cross(p - origin).normalize_or_zero()
-                    }
+                    JointKind::Revolute | JointKind::Continuous => axis.cross(p - origin),
                     JointKind::Fixed => Vec3::ZERO,
                 };
-                if let (Some(f), Some(jo)) = (flow.get_mut(i), joint.get_mut(i)) {
-                    *f = v.to_array();
+                if let (Some(f), Some(s), Some(jo)) =
+                    (flow.get_mut(i), speed.get_mut(i), joint.get_mut(i))
+                {
+                    *f = v.normalize_or_zero().to_array();
+                    *s = if *f == [0.0; 3] { 0.0 } else { v.length() };
                     *jo = i32::try_from(j).unwrap_or(-1);
                 }
+            }
+        }
+        // Relative to each part's fastest visible point.
+        let mut fastest = vec![0.0f32; model.joints.len()];
+        for (s, j) in speed.iter().zip(&joint) {
+            if let Some(m) = usize::try_from(*j).ok().and_then(|j| fastest.get_mut(j)) {
+                *m = m.max(*s);
+            }
+        }
+        for (s, j) in speed.iter_mut().zip(&joint) {
+            if let Some(m) = usize::try_from(*j).ok().and_then(|j| fastest.get(j)) {
+                *s = if *m > 0.0 { *s / *m } else { 0.0 };
             }
         }
         Ok(ArticulationFields {
             width: frame.width,
             height: frame.height,
             flow_in_world: flow,
+            speed,
             joint,
             goal_displacement_in_world: goal,
         })

@@ -72,11 +72,14 @@ fn flow_is_the_opening_direction_of_each_point_and_zero_on_fixed_parts() {
         let fields = env.articulation_fields(&frame).unwrap();
         assert!(fields.goal_displacement_in_world.is_none());
         let (mut moving, mut fixed) = (0, 0);
+        // Per joint: (speed label, how far the point moved for dq).
+        let mut speeds: std::collections::BTreeMap<i32, Vec<(f32, f32)>> = Default::default();
         for i in 0..fields.joint.len() {
             let flow = Vec3::from(fields.flow_in_world[i]);
             let j = fields.joint[i];
             if j < 0 {
                 assert_eq!(flow, Vec3::ZERO, "{c}: pixel {i}");
+                assert_eq!(fields.speed[i], 0.0, "{c}: pixel {i}");
                 fixed += usize::from(link_of(frame.segmentation[i]).is_some());
                 continue;
             }
@@ -88,6 +91,10 @@ fn flow_is_the_opening_direction_of_each_point_and_zero_on_fixed_parts() {
                 .unwrap();
             let dq = 1e-3;
             let step = moved(&env, link, j, dq, p) - p;
+            speeds
+                .entry(j as i32)
+                .or_default()
+                .push((fields.speed[i], step.length()));
             if step.length() < 1e-7 {
                 continue; // on a hinge's axis
             }
@@ -99,6 +106,17 @@ fn flow_is_the_opening_direction_of_each_point_and_zero_on_fixed_parts() {
             moving > 20 && fixed > 5,
             "{c}: {moving} moving, {fixed} fixed pixels"
         );
+        // Speed: each point's step over its part's largest step.
+        for (j, pairs) in speeds {
+            let fastest = pairs.iter().map(|p| p.1).fold(0.0f32, f32::max);
+            for (speed, step) in pairs {
+                assert!(
+                    (speed - step / fastest).abs() < 0.02,
+                    "{c}: joint {j}: speed {speed} against {}",
+                    step / fastest
+                );
+            }
+        }
     }
 }
 

@@ -1,0 +1,191 @@
+"""Single-frame joint inference (beyond the paper): a joint's type, axis and
+origin from the articulation flow a position net predicts on one RGB-D frame,
+measured against the simulator's truth.
+
+    python -m umpnet_train.frame_joint CHECKPOINT [--split test] [--episodes 20]
+
+The checkpoint must have the auxiliary fields head (`train --aux-fields`);
+with `--aux-flow scaled` its flow carries each point's relative speed, which
+a hinge needs (unit flow on a flat door is the same vector everywhere).
+
+For each scene the grasp is the oracle's, on the part that moves, so the
+measure is of the joint inference alone. The part is the predicted movable
+pixels connected to the grasp over the depth surface. Each point's predicted
+flow v is fitted to a rigid motion, v = w x (p - centroid) + c: a hinge when
+the rotation explains the flow much better than a constant does (axis w, the
+origin where w x c puts it), else a slide along c. The truth is the same fit
+on the simulator's scaled flow of the grasped part, which is exact.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+import torch
+import umpnet
+
+from .config import config_from_checkpoint
+from .models import UMPNet
+
+# The rotation must explain this much more of the flow than a constant does.
+HINGE_GAIN = 2.0
+# Neighbouring pixels farther apart than this (m) are on different surfaces.
+SURFACE_STEP = 0.03
+
+
+def skew(x: np.ndarray) -> np.ndarray:
+    return np.array([[0, -x[2], x[1]], [x[2], 0, -x[0]], [-x[1], x[0], 0]])
+
+
+def fit_joint(points: np.ndarray, flow: np.ndarray) -> dict | None:
+    """The rigid motion that best explains per-point flow (n x 3 each):
+    {"type", "axis", "origin" (revolute)}, or None without enough points."""
+    if len(points) < 3 or not np.isfinite(flow).all():
+        return None
+    centroid = points.mean(0)
+    a = np.zeros((3 * len(points), 6))
+    for i, x in enumerate(points - centroid):
+        a[3 * i : 3 * i + 3, 0:3] = -skew(x)
+        a[3 * i : 3 * i + 3, 3:6] = np.eye(3)
+    b = flow.reshape(-1)
+    solution, *_ = np.linalg.lstsq(a, b, rcond=None)
+    w, c = solution[:3], solution[3:]
+    rotating = np.sum((a @ solution - b) ** 2)
+    sliding = np.sum((flow - flow.mean(0)) ** 2)
+    if np.linalg.norm(w) > 1e-9 and rotating * HINGE_GAIN < sliding:
+        origin = centroid + np.cross(w, c) / np.dot(w, w)
+        return {"type": "revolute", "axis": w / np.linalg.norm(w), "origin": origin}
+    mean = flow.mean(0)
+    if np.linalg.norm(mean) < 1e-9:
+        return None
+    return {"type": "prismatic", "axis": mean / np.linalg.norm(mean), "origin": None}
+
+
+def part_pixels(image: np.ndarray, movable: np.ndarray, seed: tuple[int, int]) -> list[tuple[int, int]]:
+    """Pixels connected to `seed` through movable pixels on one surface."""
+    h, w = movable.shape
+    points, valid = image[..., 0:3], image[..., 9] > 0
+    seen, queue, out = {seed}, deque([seed]), []
+    while queue:
+        r, c = queue.popleft()
+        out.append((r, c))
+        for n in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
+            if (
+                0 <= n[0] < h
+                and 0 <= n[1] < w
+                and n not in seen
+                and valid[n]
+                and movable[n]
+                and np.linalg.norm(points[n] - points[r, c]) < SURFACE_STEP
+            ):
+                seen.add(n)
+                queue.append(n)
+    return out
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(min(1.0, abs(float(np.dot(a, b)))))))
+
+
+def measure(checkpoint: Path, split: str, episodes: int, seed: int = 0) -> dict:
+    ck = torch.load(checkpoint, map_location="cpu", weights_only=False)
+    cfg = config_from_checkpoint(ck["config"])
+    if cfg.aux_fields <= 0:
+        raise ValueError(f"{checkpoint}: trained without --aux-fields, so it predicts no flow")
+    model = UMPNet(cfg)
+    model.load_state_dict(ck["model"])
+    model.eval()
+    rows = []
+    names = [name for name, s, _ in umpnet.categories() if s == split]
+    for category in names:
+        for k in range(episodes):
+            env = umpnet.Env(category, seed=seed + k, task="exploration", split=split, copy=True,
+                             resolution=(cfg.height, cfg.width))  # fmt: skip
+            image = env.reset()["image"]
+            grasp = tuple(int(v) for v in env.scripted_action("oracle"))
+            truth_fields = env.articulation_fields()
+            joint = truth_fields["joint"].reshape(cfg.height, cfg.width)
+            j = joint[grasp]
+            if j < 0:
+                continue
+            on_part = joint == j
+            true_flow = truth_fields["flow"].reshape(cfg.height, cfg.width, 3) * truth_fields["speed"].reshape(
+                cfg.height, cfg.width, 1
+            )
+            truth = fit_joint(image[..., 0:3][on_part], true_flow[on_part])
+            with torch.no_grad():
+                _, fields = model.position.forward_fields(torch.from_numpy(image[None]))
+            flow = fields[0, :3].permute(1, 2, 0).numpy()
+            movable = torch.sigmoid(fields[0, 3]).numpy() > 0.5
+            movable[grasp] = True
+            pixels = part_pixels(image, movable, grasp)
+            rows_, cols_ = np.array(pixels).T
+            estimate = fit_joint(image[rows_, cols_, 0:3], flow[rows_, cols_])
+            if truth is None:
+                continue
+            row = {"category": category, "index": k, "true_type": truth["type"], "pixels": len(pixels)}
+            if estimate is None:
+                row.update(type=None, axis_error_deg=None)
+            else:
+                row.update(type=estimate["type"], axis_error_deg=angle_deg(estimate["axis"], truth["axis"]))
+                if estimate["type"] == "revolute" and truth["type"] == "revolute":
+                    offset = estimate["origin"] - truth["origin"]
+                    along = truth["axis"] * np.dot(offset, truth["axis"])
+                    row["origin_error_m"] = float(np.linalg.norm(offset - along))
+            rows.append(row)
+    return summarize(rows, split, episodes, str(checkpoint))
+
+
+def summarize(rows: list[dict], split: str, episodes: int, source: str) -> dict:
+    def stats(sel):
+        errors = [r["axis_error_deg"] if r["axis_error_deg"] is not None else 90.0 for r in sel]
+        origins = [r["origin_error_m"] for r in sel if "origin_error_m" in r]
+        return {
+            "n": len(sel),
+            "median_axis_error_deg": float(np.median(errors)) if errors else None,
+            "within_10_deg": float(np.mean([e <= 10 for e in errors])) if errors else None,
+            "type_accuracy": float(np.mean([r["type"] == r["true_type"] for r in sel])) if sel else None,
+            "median_origin_error_m": float(np.median(origins)) if origins else None,
+        }
+
+    categories = sorted({r["category"] for r in rows})
+    return {
+        "checkpoint": source,
+        "split": split,
+        "episodes_per_category": episodes,
+        "all": stats(rows),
+        "by_true_type": {t: stats([r for r in rows if r["true_type"] == t]) for t in ("revolute", "prismatic")},
+        "by_category": {c: stats([r for r in rows if r["category"] == c]) for c in categories},
+        "episodes": rows,
+    }
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("checkpoint", type=Path)
+    p.add_argument("--split", default="test", choices=("train", "test"))
+    p.add_argument("--episodes", type=int, default=20, help="scenes per category")
+    p.add_argument("--json", type=Path, help="write the whole report here")
+    a = p.parse_args(argv)
+    try:
+        report = measure(a.checkpoint, a.split, a.episodes)
+    except (OSError, ValueError, KeyError) as e:
+        p.error(str(e))
+    if a.json:
+        a.json.write_text(json.dumps(report, indent=2) + "\n")
+    print(f"{'':18s} {'n':>4s} {'median axis error':>18s} {'<= 10 deg':>10s} {'type right':>11s}")
+    for name, s in [("all", report["all"]), *report["by_true_type"].items(), *report["by_category"].items()]:
+        if s["n"]:
+            print(
+                f"{name:18s} {s['n']:4d} {s['median_axis_error_deg']:17.1f}° {s['within_10_deg']:10.2f} "
+                f"{s['type_accuracy']:11.2f}"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
