@@ -133,18 +133,7 @@ impl SimEnv {
                 }
             }
         }
-        // Relative to each part's fastest visible point.
-        let mut fastest = vec![0.0f32; model.joints.len()];
-        for (s, j) in speed.iter().zip(&joint) {
-            if let Some(m) = usize::try_from(*j).ok().and_then(|j| fastest.get_mut(j)) {
-                *m = m.max(*s);
-            }
-        }
-        for (s, j) in speed.iter_mut().zip(&joint) {
-            if let Some(m) = usize::try_from(*j).ok().and_then(|j| fastest.get(j)) {
-                *s = if *m > 0.0 { *s / *m } else { 0.0 };
-            }
-        }
+        relative_to_fastest(&mut speed, &joint, model.joints.len());
         Ok(ArticulationFields {
             width: frame.width,
             height: frame.height,
@@ -153,5 +142,20 @@ impl SimEnv {
             joint,
             goal_displacement_in_world: goal,
         })
+    }
+}
+
+/// Each pixel's speed over the largest among the pixels of the same joint.
+fn relative_to_fastest(speed: &mut [f32], joint: &[i32], joints: usize) {
+    let mut fastest = vec![0.0f32; joints];
+    for (s, j) in speed.iter().zip(joint) {
+        if let Some(m) = usize::try_from(*j).ok().and_then(|j| fastest.get_mut(j)) {
+            *m = m.max(*s);
+        }
+    }
+    for (s, j) in speed.iter_mut().zip(joint) {
+        if let Some(m) = usize::try_from(*j).ok().and_then(|j| fastest.get(j)) {
+            *s = if *m > 0.0 { *s / *m } else { 0.0 };
+        }
     }
 }
