@@ -141,6 +141,13 @@ def measure(checkpoint: Path, split: str, episodes: int, seed: int = 0, part: st
             if truth is None:
                 continue
             row = {"category": category, "index": k, "true_type": truth["type"], "pixels": len(pixels)}
+            # How the prediction errs on the true part: its directions, and its speeds.
+            pred, true = flow[on_part], true_flow[on_part]
+            norms = np.linalg.norm(pred, axis=1) * np.linalg.norm(true, axis=1)
+            row["flow_cosine"] = float(np.median(np.sum(pred * true, axis=1) / np.maximum(norms, 1e-9)))
+            speeds = np.linalg.norm(pred, axis=1), np.linalg.norm(true, axis=1)
+            if min(np.std(speeds[0]), np.std(speeds[1])) > 1e-6:
+                row["speed_correlation"] = float(np.corrcoef(*speeds)[0, 1])
             if estimate is None:
                 row.update(type=None, axis_error_deg=None)
             else:
@@ -153,6 +160,11 @@ def measure(checkpoint: Path, split: str, episodes: int, seed: int = 0, part: st
     return {"part": part, **summarize(rows, split, episodes, str(checkpoint))}
 
 
+def median(values) -> float | None:
+    kept = [v for v in values if v is not None]
+    return float(np.median(kept)) if kept else None
+
+
 def summarize(rows: list[dict], split: str, episodes: int, source: str) -> dict:
     def stats(sel):
         errors = [r["axis_error_deg"] if r["axis_error_deg"] is not None else 90.0 for r in sel]
@@ -163,6 +175,8 @@ def summarize(rows: list[dict], split: str, episodes: int, source: str) -> dict:
             "within_10_deg": float(np.mean([e <= 10 for e in errors])) if errors else None,
             "type_accuracy": float(np.mean([r["type"] == r["true_type"] for r in sel])) if sel else None,
             "median_origin_error_m": float(np.median(origins)) if origins else None,
+            "median_flow_cosine": float(np.median([r["flow_cosine"] for r in sel])) if sel else None,
+            "median_speed_correlation": median([r.get("speed_correlation") for r in sel]),
         }
 
     categories = sorted({r["category"] for r in rows})
@@ -196,12 +210,16 @@ def main(argv=None) -> int:
         p.error(str(e))
     if a.json:
         a.json.write_text(json.dumps(report, indent=2) + "\n")
-    print(f"{'':18s} {'n':>4s} {'median axis error':>18s} {'<= 10 deg':>10s} {'type right':>11s}")
+    print(
+        f"{'':18s} {'n':>4s} {'median axis error':>18s} {'<= 10 deg':>10s} {'type right':>11s} "
+        f"{'flow cosine':>12s} {'speed corr.':>12s}"
+    )
     for name, s in [("all", report["all"]), *report["by_true_type"].items(), *report["by_category"].items()]:
         if s["n"]:
             print(
                 f"{name:18s} {s['n']:4d} {s['median_axis_error_deg']:17.1f}° {s['within_10_deg']:10.2f} "
-                f"{s['type_accuracy']:11.2f}"
+                f"{s['type_accuracy']:11.2f} {s['median_flow_cosine']:12.2f} "
+                f"{'-' if s['median_speed_correlation'] is None else format(s['median_speed_correlation'], '.2f'):>12s}"
             )
     return 0
 
