@@ -249,23 +249,13 @@ impl Recorder {
             let visual = format!("world/object/link_{}/visual_{}", m.part, m.segment);
             rec.log_static(visual, &mesh).map_err(&err)?;
         }
-        let camera = env.camera();
-        let k = camera.intrinsics();
-        rec.log_static(
+        log_camera(
+            rec,
+            &self.path,
             "world/camera",
-            &transform(&camera.world_from_camera().to_mat4()),
+            env.camera(),
+            (h.frame.height, h.frame.width),
         )
-        .map_err(&err)?;
-        rec.log_static(
-            "world/camera",
-            &rerun::Pinhole::from_focal_length_and_resolution(
-                [k.fx, k.fy],
-                [h.frame.width as f32, h.frame.height as f32],
-            )
-            .with_principal_point([k.cx, k.cy]),
-        )
-        .map_err(&err)?;
-        Ok(())
     }
 
     /// Flushes the file; errors that the stream met while writing surface here.
@@ -277,6 +267,30 @@ impl Recorder {
             )
         })
     }
+}
+
+/// A camera's pose and pinhole (an image of `size`, HEIGHT x WIDTH), once.
+fn log_camera(
+    rec: &rerun::RecordingStream,
+    path: &Path,
+    entity: &str,
+    camera: &Camera,
+    size: (u32, u32),
+) -> Result<()> {
+    let err = rr_err(path);
+    let k = camera.intrinsics();
+    rec.log_static(entity, &transform(&camera.world_from_camera().to_mat4()))
+        .map_err(&err)?;
+    rec.log_static(
+        entity,
+        &rerun::Pinhole::from_focal_length_and_resolution(
+            [k.fx, k.fy],
+            [size.1 as f32, size.0 as f32],
+        )
+        .with_principal_point([k.cx, k.cy]),
+    )
+    .map_err(&err)?;
+    Ok(())
 }
 
 /// The scene at the display size, in the same pose as the policy's camera.
@@ -295,21 +309,7 @@ fn log_display(
         Some(d) => d,
         None => {
             let camera = Camera::reference(size.0, size.1);
-            let k = camera.intrinsics();
-            rec.log_static(
-                "world/display",
-                &transform(&camera.world_from_camera().to_mat4()),
-            )
-            .map_err(&err)?;
-            rec.log_static(
-                "world/display",
-                &rerun::Pinhole::from_focal_length_and_resolution(
-                    [k.fx, k.fy],
-                    [size.1 as f32, size.0 as f32],
-                )
-                .with_principal_point([k.cx, k.cy]),
-            )
-            .map_err(&err)?;
+            log_camera(rec, path, "world/display", &camera, size)?;
             let env = SimEnv::new(h.env.scene().clone(), camera, create_renderer(renderer)?)
                 .context("drawing the recording's display view")?;
             display_env.insert(env)
