@@ -125,6 +125,8 @@ def measure(checkpoint: Path, split: str, episodes: int, seed: int = 0, part: st
                 cfg.height, cfg.width, 1
             )
             truth = fit_joint(image[..., 0:3][on_part], true_flow[on_part])
+            if truth is None:
+                continue
             with torch.no_grad():
                 _, fields = model.position.forward_fields(torch.from_numpy(image[None]))
             flow = fields[0, :3].permute(1, 2, 0).numpy()
@@ -138,8 +140,6 @@ def measure(checkpoint: Path, split: str, episodes: int, seed: int = 0, part: st
             pixels = part_pixels(image, movable, grasp)
             rows_, cols_ = np.array(pixels).T
             estimate = fit_joint(image[rows_, cols_, 0:3], flow[rows_, cols_])
-            if truth is None:
-                continue
             row = {"category": category, "index": k, "true_type": truth["type"], "pixels": len(pixels)}
             # How the prediction errs on the true part: its directions, and its speeds.
             pred, true = flow[on_part], true_flow[on_part]
@@ -167,15 +167,15 @@ def median(values) -> float | None:
 
 def summarize(rows: list[dict], split: str, episodes: int, source: str) -> dict:
     def stats(sel):
+        # A scene the fit gave no joint for counts as the worst error, 90 degrees.
         errors = [r["axis_error_deg"] if r["axis_error_deg"] is not None else 90.0 for r in sel]
-        origins = [r["origin_error_m"] for r in sel if "origin_error_m" in r]
         return {
             "n": len(sel),
-            "median_axis_error_deg": float(np.median(errors)) if errors else None,
+            "median_axis_error_deg": median(errors),
             "within_10_deg": float(np.mean([e <= 10 for e in errors])) if errors else None,
             "type_accuracy": float(np.mean([r["type"] == r["true_type"] for r in sel])) if sel else None,
-            "median_origin_error_m": float(np.median(origins)) if origins else None,
-            "median_flow_cosine": float(np.median([r["flow_cosine"] for r in sel])) if sel else None,
+            "median_origin_error_m": median([r.get("origin_error_m") for r in sel]),
+            "median_flow_cosine": median([r["flow_cosine"] for r in sel]),
             "median_speed_correlation": median([r.get("speed_correlation") for r in sel]),
         }
 

@@ -288,8 +288,8 @@ def parse_args(argv=None):
         p.error("--aux-fields collects the fields in this process: use it without --ray")
     try:
         from_file = read_config_file(a.config) if a.config else {}
-        a.preset = a.preset or from_file.pop("preset", None) or "cpu-small"
-        from_file.pop("preset", None)
+        file_preset = from_file.pop("preset", None)
+        a.preset = a.preset or file_preset or "cpu-small"
         overrides = {**from_file, **config_overrides(a)}
         if a.position_from is not None:
             overrides["freeze_position"] = True

@@ -227,7 +227,7 @@ class UmpnetEnv(gym.Env):
         if self._obs is None:
             return None
         if self._viewer is not None:
-            self._viewer.show(self._frame())
+            self._show()
             return None
         return self._frame()
 

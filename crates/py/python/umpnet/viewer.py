@@ -7,7 +7,7 @@ them, as on a server or in CI, each frame replaces one PNG, and the ``umpnet``
 logger says where once (a notice about the machine, not a Python warning,
 so gymnasium's env checker stays quiet): an image viewer that reloads shows
 the episode as it runs.
-``frame_path=`` picks that file and asks for it (no window, no warning).
+``frame_path=`` picks that file and asks for it (no window, no notice).
 """
 
 from __future__ import annotations
