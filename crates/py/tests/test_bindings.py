@@ -456,11 +456,16 @@ def test_a_long_probe_stops_on_ctrl_c():
     vec.reset()
     vec.step_position(np.array(vec.scripted_actions("oracle")))
     dirs = np.random.default_rng(0).normal(size=(1, 1024, 3)).astype(np.float32)
-    t = time.perf_counter()
-    full = vec.probe_directions(dirs)
-    whole = time.perf_counter() - t
+    # Timed warm, and the quicker of two: a first call's start-up cost once made
+    # the interrupt come after a later, faster probe had already finished.
+    first = vec.probe_directions(dirs[:, :32])
+    whole = float("inf")
+    for _ in range(2):
+        t = time.perf_counter()
+        full = vec.probe_directions(dirs)
+        whole = min(whole, time.perf_counter() - t)
     # The probe answers in chunks, so the labels are those of one call.
-    np.testing.assert_array_equal(full["r_dist"][:, :32], vec.probe_directions(dirs[:, :32])["r_dist"])
+    np.testing.assert_array_equal(full["r_dist"][:, :32], first["r_dist"])
     timer = threading.Timer(whole / 10, _thread.interrupt_main)
     timer.start()
     t = time.perf_counter()
