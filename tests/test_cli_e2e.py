@@ -1022,3 +1022,46 @@ def test_a_learned_policy_says_when_it_does_not_use_the_resolution_asked_for():
     assert "sees 96x128" in asked.stderr and "--resolution 480x640 is not used" in asked.stderr, asked.stderr
     plain = run("goal", "--category", "Door", "--policy", "umpnet", "--model", model, "--steps", "1")
     assert "notice" not in plain.stderr, plain.stderr
+
+
+def test_a_package_with_a_joint_net_reports_the_grasped_parts_joint_from_one_frame(tmp_path, fixture_package):
+    """infer's JSON carries the grasped part's joint read by the package's
+    JointNet (the fixture's calls every pixel a part sliding along +x), null
+    for a package without one; explore scores it against the simulator's
+    joint, in JSON and in words."""
+    joint_pkg = str(Path(fixture_package) / "joint")
+    run("render", "--category", "Microwave", "--seed", "3", "--resolution", "96x128", "--out", str(tmp_path))
+    frame = ["--rgb", str(tmp_path / "color.png"), "--depth", str(tmp_path / "depth.npy"),
+             "--camera", str(tmp_path / "camera.json"), "--grasp", "48,64"]  # fmt: skip
+    out = json.loads(run("--json", "infer", *frame, "--model", joint_pkg).stdout)
+    assert out["joint"]["estimate"] == {"type": "prismatic", "axis": [1.0, 0.0, 0.0]}
+    assert out["joint"]["part_pixels"] > 100 and out["joint"]["hinge_probability"] < 0.01
+    plain = json.loads(run("--json", "infer", *frame, "--model", str(Path(fixture_package) / "steer")).stdout)
+    assert plain["joint"] is None
+    # Laptop seed 2: the fixture's position net grasps the lid, a hinge about x.
+    args = (
+        "explore",
+        "--category",
+        "Laptop",
+        "--seed",
+        "2",
+        "--policy",
+        "umpnet",
+        "--model",
+        joint_pkg,
+        "--steps",
+        "1",
+    )
+    ep = json.loads(run("--json", *args).stdout)
+    f = ep["frame_joint"]
+    assert f["estimate"]["estimate"] == {"type": "prismatic", "axis": [1.0, 0.0, 0.0]}
+    assert not f["true_prismatic"] and not f["type_right"] and f["origin_error_m"] is None
+    expected = math.degrees(math.acos(min(1.0, abs(f["true_axis"][0]) / math.hypot(*f["true_axis"]))))
+    assert abs(f["axis_error_deg"] - expected) < 1e-3 and expected < 10
+    text = run(*args).stdout
+    assert "joint from the first frame (JointNet" in text and f"{f['axis_error_deg']:.1f} deg apart" in text, text
+    assert "wrong type" in text
+    without = json.loads(
+        run("--json", *args[:-4], "--model", str(Path(fixture_package) / "steer"), "--steps", "1").stdout
+    )
+    assert "frame_joint" not in without

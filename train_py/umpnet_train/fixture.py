@@ -63,6 +63,21 @@ def inverse_model(prediction=(1.2, 1.6, 0.0)):
     return model, cfg
 
 
+def constant_joint_net(height: int, width: int):
+    """A JointNet whose every pixel says: movable, a slide along +x (its
+    weights zero, its head's bias set), so the runtime's vote is known."""
+    from .joint_net import OUTPUTS, JointConfig, JointNet
+
+    cfg = JointConfig(height=height, width=width, widths=(4, 8))
+    model = JointNet(cfg)
+    with torch.no_grad():
+        for p in model.parameters():
+            p.zero_()
+        bias = dict.fromkeys(OUTPUTS, 0.0) | {"movable": 5.0, "revolute": -5.0, "flow_x": 1.0, "axis_x": 1.0}
+        model.unet.head.bias.copy_(torch.tensor([bias[k] for k in OUTPUTS]))
+    return model, cfg
+
+
 def write_hand_set_packages(out: Path) -> None:
     provenance = {"command": "python -m umpnet_train.fixture", "seed": 0, "trained": False}
     model, cfg = steering_model()
@@ -70,6 +85,12 @@ def write_hand_set_packages(out: Path) -> None:
     export_model(model, cfg, out / "steer-normal90", provenance, direction_filter="normal90")
     model, cfg = inverse_model()
     export_model(model, cfg, out / "inverse", provenance)
+    # The steering package with a JointNet that always votes a slide along +x.
+    model, cfg = steering_model()
+    export_model(model, cfg, out / "joint", provenance)
+    from .joint_net import export_joint
+
+    export_joint(*constant_joint_net(cfg.height, cfg.width), out / "joint")
 
 
 def main(argv=None) -> int:

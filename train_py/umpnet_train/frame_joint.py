@@ -96,58 +96,102 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.degrees(np.arccos(min(1.0, abs(float(np.dot(a, b)))))))
 
 
-def measure(checkpoint: Path, split: str, episodes: int, seed: int = 0, part: str = "predicted") -> dict:
-    """`part`: predicted (the movable pixels the network sees, connected to
-    the grasp) or truth (the simulator's pixels of the grasped part: the flow
-    alone is measured)."""
-    ck = torch.load(checkpoint, map_location="cpu", weights_only=False)
+def load_source(source: Path):
+    """What predicts the joint: a model package with a JointNet (`joint.onnx`,
+    voted by the Rust runtime, as `umpnet infer` does), a JointNet checkpoint
+    (`joint_net`'s joint.pt, the same vote), or a policy checkpoint trained
+    with `--aux-fields` (the rigid-motion fit of its flow head). Returns the
+    image size and a function (image, grasp, true part or None) -> (estimate,
+    predicted flow or None)."""
+    if (source / "model.json").is_file():
+        policy = umpnet.Policy(str(source))
+        if not json.loads((source / "model.json").read_text())["files"].get("joint"):
+            raise ValueError(f"{source}: the package has no JointNet (files.joint)")
+
+        def from_package(image, grasp, _part):
+            return rust_estimate(policy.frame_joint(image, grasp)), None
+
+        return policy.resolution, from_package
+    ck = torch.load(source, map_location="cpu", weights_only=False)
+    if "step" in ck and "widths" in ck["config"]:
+        from .joint_net import load
+
+        model, cfg = load(source)
+
+        def from_joint_net(image, grasp, _part):
+            with torch.no_grad():
+                fields = model(torch.from_numpy(image[None]))[0].numpy()
+            estimate = umpnet._umpnet.joint_from_fields(image, np.ascontiguousarray(fields), grasp)
+            return rust_estimate(estimate), fields[2:5].transpose(1, 2, 0)
+
+        return (cfg.height, cfg.width), from_joint_net
     cfg = config_from_checkpoint(ck["config"])
     if cfg.aux_fields <= 0:
-        raise ValueError(f"{checkpoint}: trained without --aux-fields, so it predicts no flow")
+        raise ValueError(f"{source}: trained without --aux-fields, so it predicts no flow")
     model = UMPNet(cfg)
     model.load_state_dict(ck["model"])
     model.eval()
+
+    def from_flow_head(image, grasp, true_part):
+        with torch.no_grad():
+            _, fields = model.position.forward_fields(torch.from_numpy(image[None]))
+        flow = fields[0, :3].permute(1, 2, 0).numpy()
+        if true_part is not None:
+            movable = true_part.copy()
+        else:
+            movable = (torch.sigmoid(fields[0, 3]).numpy() > MOVABLE_PROB) | (
+                np.linalg.norm(flow, axis=-1) > MOVING_FLOW
+            )
+        movable[grasp] = True
+        rows_, cols_ = np.array(part_pixels(image, movable, grasp)).T
+        return fit_joint(image[rows_, cols_, 0:3], flow[rows_, cols_]), flow
+
+    return (cfg.height, cfg.width), from_flow_head
+
+
+def rust_estimate(estimate: dict | None) -> dict | None:
+    if estimate is None:
+        return None
+    point = estimate["point"]
+    return {"type": estimate["type"], "axis": np.array(estimate["axis"]),
+            "origin": None if point is None else np.array(point)}  # fmt: skip
+
+
+def measure(source: Path, split: str, episodes: int, seed: int = 0, part: str = "predicted") -> dict:
+    """`part`: predicted (the part the network sees, connected to the grasp)
+    or truth (the simulator's pixels of the grasped part, so the flow alone is
+    measured; a policy checkpoint's flow head only)."""
+    (height, width), predict = load_source(source)
+    if part == "truth" and predict.__name__ != "from_flow_head":
+        raise ValueError("--part truth measures a policy checkpoint's flow head; a JointNet finds its own part")
     rows = []
     names = [name for name, s, _ in umpnet.categories() if s == split]
     for category in names:
         for k in range(episodes):
             env = umpnet.Env(category, seed=seed + k, task="exploration", split=split, copy=True,
-                             resolution=(cfg.height, cfg.width))  # fmt: skip
+                             resolution=(height, width))  # fmt: skip
             image = env.reset()["image"]
             grasp = tuple(int(v) for v in env.scripted_action("oracle"))
             truth_fields = env.articulation_fields()
-            joint = truth_fields["joint"].reshape(cfg.height, cfg.width)
+            joint = truth_fields["joint"].reshape(height, width)
             j = joint[grasp]
             if j < 0:
                 continue
             on_part = joint == j
-            true_flow = truth_fields["flow"].reshape(cfg.height, cfg.width, 3) * truth_fields["speed"].reshape(
-                cfg.height, cfg.width, 1
-            )
+            true_flow = truth_fields["flow"].reshape(height, width, 3) * truth_fields["speed"].reshape(height, width, 1)
             truth = fit_joint(image[..., 0:3][on_part], true_flow[on_part])
             if truth is None:
                 continue
-            with torch.no_grad():
-                _, fields = model.position.forward_fields(torch.from_numpy(image[None]))
-            flow = fields[0, :3].permute(1, 2, 0).numpy()
-            if part == "truth":
-                movable = on_part
-            else:
-                movable = (torch.sigmoid(fields[0, 3]).numpy() > MOVABLE_PROB) | (
-                    np.linalg.norm(flow, axis=-1) > MOVING_FLOW
-                )
-            movable[grasp] = True
-            pixels = part_pixels(image, movable, grasp)
-            rows_, cols_ = np.array(pixels).T
-            estimate = fit_joint(image[rows_, cols_, 0:3], flow[rows_, cols_])
-            row = {"category": category, "index": k, "true_type": truth["type"], "pixels": len(pixels)}
-            # How the prediction errs on the true part: its directions, and its speeds.
-            pred, true = flow[on_part], true_flow[on_part]
-            norms = np.linalg.norm(pred, axis=1) * np.linalg.norm(true, axis=1)
-            row["flow_cosine"] = float(np.median(np.sum(pred * true, axis=1) / np.maximum(norms, 1e-9)))
-            speeds = np.linalg.norm(pred, axis=1), np.linalg.norm(true, axis=1)
-            if min(np.std(speeds[0]), np.std(speeds[1])) > 1e-6:
-                row["speed_correlation"] = float(np.corrcoef(*speeds)[0, 1])
+            estimate, flow = predict(image, grasp, on_part if part == "truth" else None)
+            row = {"category": category, "index": k, "true_type": truth["type"]}
+            if flow is not None:
+                # How the predicted flow errs on the true part: its directions, and its speeds.
+                pred, true = flow[on_part], true_flow[on_part]
+                norms = np.linalg.norm(pred, axis=1) * np.linalg.norm(true, axis=1)
+                row["flow_cosine"] = float(np.median(np.sum(pred * true, axis=1) / np.maximum(norms, 1e-9)))
+                speeds = np.linalg.norm(pred, axis=1), np.linalg.norm(true, axis=1)
+                if min(np.std(speeds[0]), np.std(speeds[1])) > 1e-6:
+                    row["speed_correlation"] = float(np.corrcoef(*speeds)[0, 1])
             if estimate is None:
                 row.update(type=None, axis_error_deg=None)
             else:
@@ -157,7 +201,7 @@ def measure(checkpoint: Path, split: str, episodes: int, seed: int = 0, part: st
                     along = truth["axis"] * np.dot(offset, truth["axis"])
                     row["origin_error_m"] = float(np.linalg.norm(offset - along))
             rows.append(row)
-    return {"part": part, **summarize(rows, split, episodes, str(checkpoint))}
+    return {"part": part, **summarize(rows, split, episodes, str(source))}
 
 
 def median(values) -> float | None:
@@ -175,7 +219,7 @@ def summarize(rows: list[dict], split: str, episodes: int, source: str) -> dict:
             "within_10_deg": float(np.mean([e <= 10 for e in errors])) if errors else None,
             "type_accuracy": float(np.mean([r["type"] == r["true_type"] for r in sel])) if sel else None,
             "median_origin_error_m": median([r.get("origin_error_m") for r in sel]),
-            "median_flow_cosine": median([r["flow_cosine"] for r in sel]),
+            "median_flow_cosine": median([r.get("flow_cosine") for r in sel]),
             "median_speed_correlation": median([r.get("speed_correlation") for r in sel]),
         }
 
@@ -193,7 +237,7 @@ def summarize(rows: list[dict], split: str, episodes: int, source: str) -> dict:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("checkpoint", type=Path)
+    p.add_argument("source", type=Path, help="a package with a JointNet, a JointNet checkpoint, or a policy checkpoint")
     p.add_argument("--split", default="test", choices=("train", "test"))
     p.add_argument("--episodes", type=int, default=20, help="scenes per category")
     p.add_argument(
@@ -205,21 +249,25 @@ def main(argv=None) -> int:
     p.add_argument("--json", type=Path, help="write the whole report here")
     a = p.parse_args(argv)
     try:
-        report = measure(a.checkpoint, a.split, a.episodes, part=a.part)
+        report = measure(a.source, a.split, a.episodes, part=a.part)
     except (OSError, ValueError, KeyError) as e:
         p.error(str(e))
     if a.json:
         a.json.write_text(json.dumps(report, indent=2) + "\n")
+
+    def cell(v, spec):
+        return "-" if v is None else format(v, spec)
+
     print(
         f"{'':18s} {'n':>4s} {'median axis error':>18s} {'<= 10 deg':>10s} {'type right':>11s} "
-        f"{'flow cosine':>12s} {'speed corr.':>12s}"
+        f"{'origin error':>13s} {'flow cosine':>12s} {'speed corr.':>12s}"
     )
     for name, s in [("all", report["all"]), *report["by_true_type"].items(), *report["by_category"].items()]:
         if s["n"]:
             print(
                 f"{name:18s} {s['n']:4d} {s['median_axis_error_deg']:17.1f}° {s['within_10_deg']:10.2f} "
-                f"{s['type_accuracy']:11.2f} {s['median_flow_cosine']:12.2f} "
-                f"{'-' if s['median_speed_correlation'] is None else format(s['median_speed_correlation'], '.2f'):>12s}"
+                f"{s['type_accuracy']:11.2f} {cell(s['median_origin_error_m'], '.3f'):>11s} m "
+                f"{cell(s['median_flow_cosine'], '.2f'):>12s} {cell(s['median_speed_correlation'], '.2f'):>12s}"
             )
     return 0
 

@@ -139,6 +139,10 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
     if let Some(r) = recorder {
         r.finish()?;
     }
+    let frame_joint = match (task, resolved.packages.first()) {
+        (Task::Exploration, Some((_, dir))) => frame_joint_score(&ep, dir, &camera, a.renderer)?,
+        _ => None,
+    };
     let (ended, why) = end_reason(&ep, task);
     if let (Some(out), Some(d)) = (&a.out, display.as_mut()) {
         let title = picture_title(&ep, task, a.object.seed, &why);
@@ -148,11 +152,17 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         let mut value = serde_json::to_value(&ep)?;
         if let Some(map) = value.as_object_mut() {
             map.insert("ended".into(), ended.into());
+            if let Some(f) = &frame_joint {
+                map.insert("frame_joint".into(), serde_json::to_value(f)?);
+            }
         }
         outln!("{value}");
         return Ok(());
     }
     print_episode(&ep, task, a.object.seed, &why)?;
+    if let Some(f) = &frame_joint {
+        print_frame_joint(f)?;
+    }
     if let Some(out) = &a.out {
         outln!("pictures in {}", out.display());
     }
@@ -363,6 +373,70 @@ fn end_reason(ep: &umpnet_eval::episode::Episode, task: Task) -> (&'static str, 
     } else {
         ("budget", format!("all {} spent", steps(ep.budget)))
     }
+}
+
+/// The joint a package's JointNet reads from the scene's first frame at the
+/// episode's grasp, scored against the simulator; None without a JointNet,
+/// a valid grasp or a vote.
+fn frame_joint_score(
+    ep: &umpnet_eval::episode::Episode,
+    package: &std::path::Path,
+    camera: &Camera,
+    renderer: RendererKind,
+) -> Result<Option<umpnet_eval::frame_joint::FrameJointScore>> {
+    let Some(joint) = ep.joint.filter(|_| ep.valid_position) else {
+        return Ok(None);
+    };
+    let pkg = umpnet_policy::ModelPackage::load(package, 1, 1, None)
+        .with_context(|| format!("loading {}", package.display()))?;
+    if !pkg.has_joint() {
+        return Ok(None);
+    }
+    let policy = umpnet_policy::UmpnetPolicy::new(std::sync::Arc::new(pkg));
+    let pixel = (ep.pixel.0 as usize, ep.pixel.1 as usize);
+    Ok(umpnet_eval::frame_joint::score_first_frame(
+        &ep.scene,
+        camera,
+        create_renderer(renderer)?,
+        &policy,
+        pixel,
+        joint,
+    )?)
+}
+
+fn print_frame_joint(f: &umpnet_eval::frame_joint::FrameJointScore) -> Result<()> {
+    use umpnet_policy::axis::JointEstimate;
+    let v = |a: &[f32; 3]| format!("({:.3}, {:.3}, {:.3})", a[0], a[1], a[2]);
+    let estimate = match &f.estimate.estimate {
+        JointEstimate::Prismatic { axis } => format!("prismatic, axis {}", v(axis)),
+        JointEstimate::Revolute { axis, point } => {
+            format!("revolute, axis {} through {}", v(axis), v(point))
+        }
+    };
+    let truth = if f.true_prismatic {
+        format!("prismatic, axis {}", v(&f.true_axis))
+    } else {
+        format!(
+            "revolute, axis {} through {}",
+            v(&f.true_axis),
+            v(&f.true_point)
+        )
+    };
+    let origin = f
+        .origin_error_m
+        .map(|m| format!(", the axis passes {m:.3} m from the true one"))
+        .unwrap_or_default();
+    outln!(
+        "joint from the first frame (JointNet, {} part pixels, hinge probability {:.2}): {estimate}",
+        f.estimate.part_pixels,
+        f.estimate.hinge_probability
+    );
+    outln!(
+        "  true: {truth}; {:.1} deg apart{origin}{}",
+        f.axis_error_deg,
+        if f.type_right { "" } else { "; the wrong type" }
+    );
+    Ok(())
 }
 
 /// The paper's joint-axis inference from the executed directions, for a

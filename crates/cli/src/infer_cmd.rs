@@ -613,7 +613,8 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
 }
 
 /// One decision, as infer prints it (JSON): the grasp pixel in the full
-/// frame and its world point, the direction (None: stop) with its scores.
+/// frame and its world point, the direction (None: stop) with its scores,
+/// and the grasped part's joint when the package has a JointNet.
 pub(crate) fn decide(
     inputs: &Inputs,
     reference: &ndarray::Array3<f32>,
@@ -658,6 +659,8 @@ pub(crate) fn decide(
             model.display()
         );
     }
+    // The joint of the grasped part from this frame alone (a package with a JointNet).
+    let joint = inputs.policy.frame_joint(inputs.obs.view(), pixel_small)?;
     Ok(serde_json::json!({
         "pixel": [pixel_full.0, pixel_full.1],
         "point_in_world": point.map(|p| [p.x, p.y, p.z]),
@@ -666,6 +669,7 @@ pub(crate) fn decide(
         "predicted_distance": best.map(|(_, s)| s.distance),
         "predicted_aot": best.map(|(_, s)| s.aot),
         "stop": r.direction.is_none(),
+        "joint": joint,
         "model": model,
     }))
 }

@@ -3,6 +3,7 @@
 #![warn(missing_docs)]
 pub mod benchmark;
 pub mod episode;
+pub mod frame_joint;
 pub mod learned;
 pub mod partnet;
 pub mod policy;

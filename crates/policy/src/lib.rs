@@ -6,6 +6,7 @@ pub mod axis;
 pub mod cem;
 /// Errors of the runtime: bad input, a bad package, ONNX Runtime failing.
 pub mod error;
+pub mod frame_joint;
 pub mod memory;
 pub mod observation;
 

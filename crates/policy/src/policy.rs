@@ -92,6 +92,28 @@ impl UmpnetPolicy {
         )
     }
 
+    /// The joint of the part at `pixel` (row, col of `observation`, an
+    /// H x W x 10 observation), read from this one frame by the package's
+    /// JointNet; None when the package has none or the vote has too few
+    /// pixels ([`crate::frame_joint`]).
+    pub fn frame_joint(
+        &self,
+        observation: ArrayView3<'_, f32>,
+        pixel: (usize, usize),
+    ) -> Result<Option<crate::frame_joint::FrameJoint>> {
+        let Some(fields) = self
+            .package
+            .joint_fields(observation.insert_axis(Axis(0)))?
+        else {
+            return Ok(None);
+        };
+        Ok(crate::frame_joint::joint_from_fields(
+            observation,
+            fields.index_axis(Axis(0), 0),
+            pixel,
+        ))
+    }
+
     /// Best pixel of the affordance map among pixels with depth; with a goal
     /// observation, only where current and goal differ (the paper's mask).
     pub fn position(

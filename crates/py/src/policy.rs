@@ -14,8 +14,12 @@ use pyo3::types::PyDict;
 use rand::SeedableRng;
 use std::path::PathBuf;
 use std::sync::Arc;
+use umpnet_policy::axis::JointEstimate;
 use umpnet_policy::cem::CemResult;
 use umpnet_policy::cem::Mode;
+use umpnet_policy::frame_joint::{
+    FrameJoint, JOINT_CHANNELS, joint_from_fields as joint_from_fields_rs,
+};
 use umpnet_policy::memory::EpisodeMemory;
 use umpnet_policy::{DecisionInput, ModelPackage, UmpnetPolicy};
 
@@ -86,6 +90,26 @@ impl Policy {
 
     /// Directions for a batch: images/references B x H x W x 10, pixels B x 2.
     /// Returns a list of dicts (direction or None to stop, candidates, distance, aot).
+    /// The joint of the part at `pixel` (row, col) read from this one
+    /// observation (H x W x 10) by the package's JointNet: a dict with
+    /// `type` ("revolute" or "prismatic"), `axis`, `point` (on a hinge's axis,
+    /// None for a slide; world frame), `hinge_probability` and `part_pixels`.
+    /// None when the package has no JointNet or too few part pixels voted.
+    fn frame_joint<'py>(
+        &self,
+        py: Python<'py>,
+        image: Arr3<'_, f32>,
+        pixel: (i64, i64),
+    ) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let img = to_array3(&image.0)?;
+        let (h, w, _) = img.dim();
+        let px = check_pixel("pixel", pixel, (h, w))?;
+        match self.inner.frame_joint(img.view(), px).map_err(policy_err)? {
+            Some(j) => frame_joint_dict(py, &j).map(Some),
+            None => Ok(None),
+        }
+    }
+
     #[pyo3(signature = (images, references, pixels, mode="explore"))]
     fn direction_batch<'py>(
         &mut self,
@@ -200,6 +224,47 @@ impl Policy {
         self.last = r.direction;
         decision_dict(py, &r)
     }
+}
+
+/// The same vote from JointNet outputs computed elsewhere (a training
+/// checkpoint): `fields` is 11 x H x W (the JointNet's channels), `image`
+/// H x W x 10. What `Policy.frame_joint` returns.
+#[pyfunction]
+pub(crate) fn joint_from_fields<'py>(
+    py: Python<'py>,
+    image: Arr3<'_, f32>,
+    fields: Arr3<'_, f32>,
+    pixel: (i64, i64),
+) -> PyResult<Option<Bound<'py, PyDict>>> {
+    let (img, f) = (to_array3(&image.0)?, to_array3(&fields.0)?);
+    let (h, w, c) = img.dim();
+    if c != umpnet_policy::CHANNELS || f.dim() != (JOINT_CHANNELS, h, w) {
+        return Err(PyValueError::new_err(format!(
+            "image {:?} and fields {:?}: expected (H, W, {}) and ({JOINT_CHANNELS}, H, W)",
+            img.dim(),
+            f.dim(),
+            umpnet_policy::CHANNELS
+        )));
+    }
+    let px = check_pixel("pixel", pixel, (h, w))?;
+    match joint_from_fields_rs(img.view(), f.view(), px) {
+        Some(j) => frame_joint_dict(py, &j).map(Some),
+        None => Ok(None),
+    }
+}
+
+fn frame_joint_dict<'py>(py: Python<'py>, j: &FrameJoint) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let (kind, axis, point) = match j.estimate {
+        JointEstimate::Prismatic { axis } => ("prismatic", axis, None),
+        JointEstimate::Revolute { axis, point } => ("revolute", axis, Some(point)),
+    };
+    d.set_item("type", kind)?;
+    d.set_item("axis", axis.to_vec())?;
+    d.set_item("point", point.map(|p| p.to_vec()))?;
+    d.set_item("hinge_probability", j.hinge_probability)?;
+    d.set_item("part_pixels", j.part_pixels)?;
+    Ok(d)
 }
 
 fn parse_mode(mode: &str) -> PyResult<Mode> {

@@ -151,6 +151,32 @@ def test_policy_runs_on_env_observations(fixture_package):
     assert out[0]["direction"] is not None and abs(np.linalg.norm(out[0]["direction"]) - 1) < 1e-4
 
 
+def test_policy_reads_a_joint_from_one_frame_as_the_runtime_votes_it(fixture_package):
+    """Policy.frame_joint runs the package's JointNet and votes over the part
+    at the pixel; joint_from_fields gives the same vote from outputs computed
+    elsewhere (a training checkpoint); bad input is a ValueError naming it."""
+    import onnxruntime as ort
+
+    package = Path(fixture_package) / "joint"
+    pol = umpnet.Policy(str(package))
+    env = umpnet.Env("Microwave", seed=3, resolution=pol.resolution, copy=True)
+    image = env.reset()["image"]
+    h, w = pol.resolution
+    joint = pol.frame_joint(image, (h // 2, w // 2))
+    assert joint["type"] == "prismatic" and joint["axis"] == [1.0, 0.0, 0.0] and joint["point"] is None
+    fields = ort.InferenceSession(str(package / "joint.onnx")).run(None, {"observation": image[None]})[0][0]
+    assert umpnet._umpnet.joint_from_fields(image, fields, (h // 2, w // 2)) == joint
+    # The same outputs saying "static" everywhere: nothing to vote on.
+    still = fields.copy()
+    still[0] = -5.0
+    assert umpnet._umpnet.joint_from_fields(image, still, (h // 2, w // 2)) is None
+    assert umpnet.Policy(str(Path(fixture_package) / "steer")).frame_joint(image, (h // 2, w // 2)) is None
+    with pytest.raises(ValueError, match="pixel"):
+        pol.frame_joint(image, (h, 0))
+    with pytest.raises(ValueError, match=r"expected \(H, W, 10\) and \(11, H, W\)"):
+        umpnet._umpnet.joint_from_fields(image, fields[:5], (0, 0))
+
+
 def test_torch_optimizer_after_rendering_in_the_same_process():
     """umpnet_train loads torch's lazy native parts before any environment renders
     (Mesa's LLVM then torch's segfaulted); check it in a fresh process."""

@@ -36,6 +36,11 @@ pub struct Files {
     pub direction_encoder: String,
     /// DirectionNet's action decoder.
     pub direction_decoder: String,
+    /// JointNet, optional (beyond the paper): per-pixel joint type, axis and
+    /// origin, from which [`crate::frame_joint`] reads the grasped part's
+    /// joint in one frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint: Option<String>,
 }
 
 /// The method a package was trained as (the paper's UMPNet or one of its

@@ -4,12 +4,13 @@
 mod meta;
 
 use crate::error::{PolicyError, Result};
+use crate::frame_joint::JOINT_CHANNELS;
 use crate::observation::CHANNELS;
 pub use meta::{
     Branch, Branches, DirectionFilter, FORMAT_VERSION, Files, InputSpec, MAX_EMBEDDING, MAX_SIDE,
     ModelMeta, Variant,
 };
-use ndarray::{Array1, Array2, Array3, ArrayView2, ArrayView4, Axis};
+use ndarray::{Array1, Array2, Array3, Array4, ArrayView2, ArrayView4, Axis};
 use ort::session::Session;
 use ort::value::TensorRef;
 use std::path::{Path, PathBuf};
@@ -31,6 +32,7 @@ struct Sessions {
     position: Session,
     encoder: Session,
     decoder: Session,
+    joint: Option<Session>,
 }
 
 /// A loaded model package: its three networks in ONNX Runtime sessions,
@@ -98,6 +100,36 @@ fn check_io(
     Ok(())
 }
 
+/// Opens the network `name` of the package in `dir` in a session.
+fn open_network(
+    env: &ort::environment::Environment,
+    dir: &Path,
+    meta_path: &Path,
+    name: &str,
+    threads: usize,
+) -> Result<(PathBuf, Session)> {
+    // A file beside model.json: `../` or an absolute path would make
+    // a package load networks from anywhere.
+    let plain = std::path::Path::new(name)
+        .file_name()
+        .is_some_and(|f| f == std::ffi::OsStr::new(name));
+    if !plain {
+        return Err(pkg_err(
+            meta_path,
+            format!("`files` names `{name}`; expected a file name in the package folder"),
+        ));
+    }
+    let file = dir.join(name);
+    if !file.is_file() {
+        return Err(pkg_err(&file, "missing (named in model.json `files`)"));
+    }
+    let s = Session::builder(env)
+        .and_then(|b| b.with_intra_threads(threads.max(1)).map_err(Into::into))
+        .and_then(|mut b| b.commit_from_file(&file))
+        .map_err(|e| ort_err(&file, e))?;
+    Ok((file, s))
+}
+
 impl ModelPackage {
     /// Loads and validates a package with `sessions` concurrent session sets
     /// and `threads` intra-op threads each.
@@ -119,30 +151,7 @@ impl ModelPackage {
         let c = CHANNELS as i64;
         let mut pool = Vec::new();
         for _ in 0..sessions.max(1) {
-            let open = |name: &str| -> Result<(PathBuf, Session)> {
-                // A file beside model.json: `../` or an absolute path would make
-                // a package load networks from anywhere.
-                let plain = std::path::Path::new(name)
-                    .file_name()
-                    .is_some_and(|f| f == std::ffi::OsStr::new(name));
-                if !plain {
-                    return Err(pkg_err(
-                        &meta_path,
-                        format!(
-                            "`files` names `{name}`; expected a file name in the package folder"
-                        ),
-                    ));
-                }
-                let file = dir.join(name);
-                if !file.is_file() {
-                    return Err(pkg_err(&file, "missing (named in model.json `files`)"));
-                }
-                let s = Session::builder(env)
-                    .and_then(|b| b.with_intra_threads(threads.max(1)).map_err(Into::into))
-                    .and_then(|mut b| b.commit_from_file(&file))
-                    .map_err(|e| ort_err(&file, e))?;
-                Ok((file, s))
-            };
+            let open = |name: &str| open_network(env, dir, &meta_path, name, threads);
             let (pf, position) = open(&meta.files.position)?;
             check_io(
                 &pf,
@@ -186,10 +195,24 @@ impl ModelPackage {
                 dec_inputs.push(("direction", vec![-1, 3]));
             }
             check_io(&df, &decoder, &dec_inputs, &outs)?;
+            let joint = match &meta.files.joint {
+                Some(name) => {
+                    let (jf, joint) = open(name)?;
+                    check_io(
+                        &jf,
+                        &joint,
+                        &[("observation", vec![-1, h, w, c])],
+                        &[("joint_fields", vec![-1, JOINT_CHANNELS as i64, h, w])],
+                    )?;
+                    Some(joint)
+                }
+                None => None,
+            };
             pool.push(Mutex::new(Sessions {
                 position,
                 encoder,
                 decoder,
+                joint,
             }));
         }
         let pkg = Self {
@@ -236,6 +259,14 @@ impl ModelPackage {
             affordance.shape(),
             &[1, h, w],
         )?;
+        if let (Some(file), Some(fields)) = (&files.joint, self.joint_fields(obs.view())?) {
+            check(
+                file,
+                "joint_fields",
+                fields.shape(),
+                &[1, JOINT_CHANNELS, h, w],
+            )?;
+        }
         let (de, ae) = self.encode(obs.view(), obs.view(), pixel.view())?;
         check(
             &files.direction_encoder,
@@ -328,6 +359,42 @@ impl ModelPackage {
                 .into_dimensionality()
                 .map_err(|e| ort_err(&file, e))?;
             finite(a, &file, "affordance")
+        })
+    }
+
+    /// Whether the package has a JointNet (`files.joint`).
+    pub fn has_joint(&self) -> bool {
+        self.meta.files.joint.is_some()
+    }
+
+    /// The JointNet's per-pixel outputs (batch x [`JOINT_CHANNELS`] x H x W),
+    /// or None when the package has no JointNet.
+    pub fn joint_fields(&self, observation: ArrayView4<'_, f32>) -> Result<Option<Array4<f32>>> {
+        let Some(name) = &self.meta.files.joint else {
+            return Ok(None);
+        };
+        self.check_obs("observation", &observation)?;
+        self.with_sessions(|s| {
+            let file = self.dir.join(name);
+            let Some(session) = s.joint.as_mut() else {
+                return Err(PolicyError::Runtime(format!(
+                    "{}: no session for the JointNet",
+                    file.display()
+                )));
+            };
+            let o = observation.as_standard_layout();
+            let input =
+                TensorRef::from_array_view(o.view().into_dyn()).map_err(|e| ort_err(&file, e))?;
+            let out = session
+                .run(ort::inputs!["observation" => input])
+                .map_err(|e| ort_err(&file, e))?;
+            let a = output(&out, "joint_fields", &file)?
+                .try_extract_array::<f32>()
+                .map_err(|e| ort_err(&file, e))?
+                .to_owned()
+                .into_dimensionality()
+                .map_err(|e| ort_err(&file, e))?;
+            finite(a, &file, "joint_fields").map(Some)
         })
     }
 

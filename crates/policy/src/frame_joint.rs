@@ -1,0 +1,294 @@
+//! A joint from one frame (beyond the paper): the grasped part's joint type,
+//! axis and origin, voted over the part's pixels from a JointNet's dense
+//! predictions (the package's optional `joint.onnx`, FlowBot++'s articulation
+//! parameters). The paper infers an axis only after several moves
+//! ([`crate::axis`]); this reads it before the first.
+#![allow(
+    clippy::indexing_slicing,
+    reason = "every index is inside the dimensions checked on entry (an H x W x 10 observation, \
+              11 x H x W fields, neighbours bounds-checked)"
+)]
+use crate::CHANNELS;
+use crate::axis::JointEstimate;
+use nalgebra::{Matrix3, Vector3};
+use ndarray::{ArrayView3, s};
+use std::collections::VecDeque;
+
+/// The JointNet's output channels per pixel, in order: movable logit, hinge
+/// logit, scaled flow (3), axis up to sign (3), the vector from the point to
+/// the nearest point on a hinge's axis (3, metres).
+pub const JOINT_CHANNELS: usize = 11;
+/// Neighbouring pixels whose points are farther apart than this (m), or than
+/// [`STEP_OVER_SPACING`] times the image's typical spacing of neighbouring
+/// points when that is larger (a coarse image), lie on different surfaces:
+/// the part stops there.
+pub const SURFACE_STEP: f32 = 0.03;
+/// See [`SURFACE_STEP`].
+pub const STEP_OVER_SPACING: f32 = 3.0;
+/// Fewest part pixels a vote needs.
+pub const MIN_PART_PIXELS: usize = 3;
+
+/// The joint of the part at the grasp, read from one frame.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct FrameJoint {
+    /// Type, unit axis (world frame) and, for a hinge, a point on its axis.
+    /// The axis points so that the part opens by a positive turn about it
+    /// (right hand) or, for a slide, in the way the part opens.
+    pub estimate: JointEstimate,
+    /// The part's mean predicted probability that its joint is a hinge.
+    pub hinge_probability: f32,
+    /// How many pixels voted: the part connected to the grasp.
+    pub part_pixels: usize,
+}
+
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+fn point(observation: &ArrayView3<'_, f32>, (r, c): (usize, usize)) -> Vector3<f32> {
+    let p = observation.slice(s![r, c, 0..3]);
+    Vector3::new(p[0], p[1], p[2])
+}
+
+fn field(fields: &ArrayView3<'_, f32>, first: usize, (r, c): (usize, usize)) -> Vector3<f32> {
+    let f = fields.slice(s![first..first + 3, r, c]);
+    Vector3::new(f[0], f[1], f[2])
+}
+
+/// The pixels connected to `grasp` that the network calls movable, on one
+/// surface (the grasp itself always, when it has depth).
+pub fn part_pixels(
+    observation: &ArrayView3<'_, f32>,
+    fields: &ArrayView3<'_, f32>,
+    grasp: (usize, usize),
+) -> Vec<(usize, usize)> {
+    let (h, w, channels) = observation.dim();
+    let valid = |(r, c): (usize, usize)| observation[[r, c, 9]] > 0.0;
+    if channels != CHANNELS
+        || fields.dim() != (JOINT_CHANNELS, h, w)
+        || grasp.0 >= h
+        || grasp.1 >= w
+        || !valid(grasp)
+    {
+        return Vec::new();
+    }
+    let step = SURFACE_STEP.max(STEP_OVER_SPACING * median_spacing(observation));
+    let mut seen = vec![false; h * w];
+    seen[grasp.0 * w + grasp.1] = true;
+    let (mut queue, mut part) = (VecDeque::from([grasp]), Vec::new());
+    while let Some((r, c)) = queue.pop_front() {
+        part.push((r, c));
+        let here = point(observation, (r, c));
+        let neighbours = [
+            (r + 1, c),
+            (r.wrapping_sub(1), c),
+            (r, c + 1),
+            (r, c.wrapping_sub(1)),
+        ];
+        for n in neighbours {
+            if n.0 >= h || n.1 >= w || seen[n.0 * w + n.1] {
+                continue;
+            }
+            if valid(n)
+                && fields[[0, n.0, n.1]] > 0.0
+                && (point(observation, n) - here).norm() < step
+            {
+                seen[n.0 * w + n.1] = true;
+                queue.push_back(n);
+            }
+        }
+    }
+    part
+}
+
+/// The median distance between the points of horizontally neighbouring
+/// pixels with depth: how far apart one pixel's points are at this camera's
+/// resolution and distance.
+fn median_spacing(observation: &ArrayView3<'_, f32>) -> f32 {
+    let (h, w, _) = observation.dim();
+    let mut d = Vec::with_capacity(h * w);
+    for r in 0..h {
+        for c in 1..w {
+            if observation[[r, c, 9]] > 0.0 && observation[[r, c - 1, 9]] > 0.0 {
+                d.push((point(observation, (r, c)) - point(observation, (r, c - 1))).norm());
+            }
+        }
+    }
+    median(d)
+}
+
+fn median(mut v: Vec<f32>) -> f32 {
+    v.sort_by(f32::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Votes the joint of the part at `grasp` (row, col of `observation`, an
+/// H x W x 10 observation) from `fields` (JOINT_CHANNELS x H x W). None when
+/// the part has fewer than [`MIN_PART_PIXELS`] pixels or the vote is
+/// degenerate (no axis).
+pub fn joint_from_fields(
+    observation: ArrayView3<'_, f32>,
+    fields: ArrayView3<'_, f32>,
+    grasp: (usize, usize),
+) -> Option<FrameJoint> {
+    let part = part_pixels(&observation, &fields, grasp);
+    if part.len() < MIN_PART_PIXELS {
+        return None;
+    }
+    let n = part.len() as f32;
+    let hinge_probability = part
+        .iter()
+        .map(|&(r, c)| sigmoid(fields[[1, r, c]]))
+        .sum::<f32>()
+        / n;
+    // The axis up to sign: the principal direction of the per-pixel axes.
+    let mut m = Matrix3::zeros();
+    for &px in &part {
+        let a = field(&fields, 5, px);
+        if a.norm() > 1e-6 {
+            let a = a.normalize();
+            m += a * a.transpose();
+        }
+    }
+    let eig = m.symmetric_eigen();
+    let (k, _) = eig
+        .eigenvalues
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))?;
+    let mut axis: Vector3<f32> = eig.eigenvectors.column(k).into_owned();
+    if !(axis.norm() > 0.5 && axis.iter().all(|v| v.is_finite())) {
+        return None;
+    }
+    axis = axis.normalize();
+    let flow: Vector3<f32> = part.iter().map(|&px| field(&fields, 2, px)).sum();
+    let centroid: Vector3<f32> = part
+        .iter()
+        .map(|&px| point(&observation, px))
+        .sum::<Vector3<f32>>()
+        / n;
+    let estimate = if hinge_probability > 0.5 {
+        // Each pixel votes the point of the axis nearest to it.
+        let votes: Vec<Vector3<f32>> = part
+            .iter()
+            .map(|&px| point(&observation, px) + field(&fields, 8, px))
+            .collect();
+        let m = Vector3::new(
+            median(votes.iter().map(|v| v.x).collect()),
+            median(votes.iter().map(|v| v.y).collect()),
+            median(votes.iter().map(|v| v.z).collect()),
+        );
+        let on_axis = m + axis * axis.dot(&(centroid - m));
+        // Opening turns the part by a positive angle about the axis.
+        let turn: f32 = part
+            .iter()
+            .map(|&px| {
+                axis.cross(&(point(&observation, px) - on_axis))
+                    .dot(&field(&fields, 2, px))
+            })
+            .sum();
+        if turn < 0.0 {
+            axis = -axis;
+        }
+        JointEstimate::Revolute {
+            axis: axis.into(),
+            point: on_axis.into(),
+        }
+    } else {
+        if axis.dot(&flow) < 0.0 {
+            axis = -axis;
+        }
+        JointEstimate::Prismatic { axis: axis.into() }
+    };
+    let finite = match &estimate {
+        JointEstimate::Prismatic { axis } => axis.iter().all(|v| v.is_finite()),
+        JointEstimate::Revolute { axis, point } => axis.iter().chain(point).all(|v| v.is_finite()),
+    };
+    finite.then_some(FrameJoint {
+        estimate,
+        hinge_probability,
+        part_pixels: part.len(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::indexing_slicing, reason = "tests")]
+    use super::*;
+    use crate::axis::axis_angle_deg;
+    use ndarray::{Array3, Zip};
+
+    /// A flat 0.5 m door in the plane y = 0 (x across, z up) seen on a
+    /// 20 x 20 grid, hinged at x = 0 about z, with exact fields.
+    fn door(hinge: bool) -> (Array3<f32>, Array3<f32>) {
+        let (h, w) = (20, 20);
+        let mut obs = Array3::<f32>::zeros((h, w, 10));
+        let mut fields = Array3::<f32>::zeros((JOINT_CHANNELS, h, w));
+        for r in 0..h {
+            for c in 0..w {
+                let (x, z) = (c as f32 * 0.025, 1.0 - r as f32 * 0.025);
+                obs[[r, c, 0]] = x;
+                obs[[r, c, 2]] = z;
+                obs[[r, c, 9]] = 2.0;
+                // The right quarter is a fixed frame.
+                let movable = c < 15;
+                fields[[0, r, c]] = if movable { 4.0 } else { -4.0 };
+                fields[[1, r, c]] = if hinge { 3.0 } else { -3.0 };
+                // Opening swings +x points toward -y about +z.
+                let speed = if hinge { x / 0.35 } else { 1.0 };
+                fields[[3, r, c]] = -speed;
+                fields[[7, r, c]] = if hinge { 1.0 } else { 0.0 };
+                fields[[6, r, c]] = if hinge { 0.0 } else { 1.0 };
+                fields[[8, r, c]] = -x;
+            }
+        }
+        (obs, fields)
+    }
+
+    #[test]
+    fn a_hinge_is_voted_with_its_axis_origin_and_opening_sense() {
+        let (obs, fields) = door(true);
+        let j = joint_from_fields(obs.view(), fields.view(), (10, 5)).unwrap();
+        assert_eq!(j.part_pixels, 20 * 15, "the fixed frame is not the part");
+        let JointEstimate::Revolute { axis, point } = j.estimate else {
+            panic!("not a hinge: {j:?}")
+        };
+        let axis = Vector3::from(axis);
+        assert!(axis_angle_deg(&axis, &Vector3::z()) < 0.1);
+        assert!(
+            axis.z < 0.0,
+            "opening toward -y is a positive turn about -z"
+        );
+        assert!(point[0].abs() < 1e-4 && point[1].abs() < 1e-4, "{point:?}");
+    }
+
+    #[test]
+    fn a_slide_follows_the_flow() {
+        let (obs, fields) = door(false);
+        let j = joint_from_fields(obs.view(), fields.view(), (3, 3)).unwrap();
+        let JointEstimate::Prismatic { axis } = j.estimate else {
+            panic!("not a slide: {j:?}")
+        };
+        assert!((Vector3::from(axis) - Vector3::new(0.0, -1.0, 0.0)).norm() < 1e-4);
+    }
+
+    #[test]
+    fn a_coarse_image_keeps_its_part_whole() {
+        // The same door seen through a camera with 5 cm between pixels.
+        let (mut obs, fields) = door(true);
+        obs.slice_mut(s![.., .., 0..3]).mapv_inplace(|v| v * 2.0);
+        let j = joint_from_fields(obs.view(), fields.view(), (10, 5)).unwrap();
+        assert_eq!(j.part_pixels, 20 * 15);
+    }
+
+    #[test]
+    fn nothing_is_voted_off_the_part_or_without_depth() {
+        let (mut obs, mut fields) = door(true);
+        Zip::from(fields.slice_mut(s![0, .., ..])).for_each(|v| *v = -1.0);
+        assert!(joint_from_fields(obs.view(), fields.view(), (10, 5)).is_none());
+        let (_, good) = door(true);
+        obs[[10, 5, 9]] = 0.0;
+        assert!(joint_from_fields(obs.view(), good.view(), (10, 5)).is_none());
+        assert!(joint_from_fields(obs.view(), good.view(), (99, 5)).is_none());
+    }
+}

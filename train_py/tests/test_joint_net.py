@@ -1,0 +1,104 @@
+"""JointNet: its labels against the simulator's fields, a short run that
+learns, resumes and exports, and the runtime reading the export."""
+
+import dataclasses
+import shutil
+from pathlib import Path
+
+import numpy as np
+import torch
+import umpnet
+from umpnet_train import frame_joint, joint_net
+
+SMALL = joint_net.JointConfig(height=48, width=64, widths=(4, 8), frames=16, steps=4, batch=4, seed=3)
+
+
+def test_labels_agree_with_the_simulators_flow_and_speed():
+    """On a hinge, each point's vector to the axis is as long as its speed
+    says (relative to the part's fastest point) and turning about the axis
+    moves it along the flow; on a slide the axis is the flow."""
+    rng = np.random.default_rng(0)
+    kinds = set()
+    for category in ("Refrigerator", "StorageFurniture", "Laptop", "Window"):
+        env = umpnet.Env(category, seed=1, split="train", copy=True, resolution=(96, 128))
+        _image, labels = joint_net.frame(env, rng, 0)
+        fields = env.articulation_fields()
+        assert (labels["movable"] == (fields["joint"] >= 0)).all()
+        for j in np.unique(fields["joint"][fields["joint"] >= 0]):
+            on = fields["joint"] == j
+            kind = labels["kind"][on]
+            assert (kind == kind[0]).all()
+            kinds.add(int(kind[0]))
+            flow, axis = fields["flow"][on], labels["axis"][on]
+            moving = np.linalg.norm(flow, axis=1) > 0.5
+            if kind[0] == 1:
+                reach = np.linalg.norm(labels["to_axis"][on], axis=1)
+                np.testing.assert_allclose(reach / reach.max(), fields["speed"][on], atol=2e-3)
+                turn = np.cross(axis, -labels["to_axis"][on])[moving]
+                cos = np.sum(turn * flow[moving], axis=1) / np.linalg.norm(turn, axis=1)
+                assert np.abs(cos).min() > 0.999
+            elif kind[0] == 0:
+                assert np.abs(np.sum(axis * flow, axis=1)).min() > 0.999
+                assert (labels["to_axis"][on] == 0).all()
+    assert kinds == {0, 1}, "both kinds of joint are seen"
+
+
+def test_a_short_run_learns_resumes_exports_and_the_runtime_reads_it(tmp_path, fixture_package):
+    data = joint_net.make_dataset(SMALL)
+    again = joint_net.make_dataset(SMALL)
+    assert all(np.array_equal(data[k], again[k]) for k in data), "the same seed gives the same frames"
+    batch = {k: torch.from_numpy(v.astype(np.float32) if v.dtype == np.float16 else v) for k, v in data.items()}
+    batch["kind"] = batch["kind"].long()
+
+    def joint_loss(model):
+        # The joint's own terms (flow, axis, the way to the axis) on the frames it learns from.
+        model.eval()
+        with torch.no_grad():
+            losses = joint_net.joint_losses(model(batch["image"]), batch)
+        return sum(losses[k].item() for k in ("flow", "axis", "to_axis"))
+
+    torch.manual_seed(SMALL.seed)
+    before = joint_loss(joint_net.JointNet(SMALL))
+    model = joint_net.train(dataclasses.replace(SMALL, steps=200), tmp_path / "learn", resume=False)
+    assert joint_loss(model) < 0.5 * before
+
+    run = tmp_path / "run"
+    run.mkdir()
+    joint_net.train(SMALL, run, resume=False)
+    assert torch.load(run / "joint.pt", weights_only=False)["step"] == 4
+    joint_net.train(dataclasses.replace(SMALL, steps=6), run, resume=True)
+    assert torch.load(run / "joint.pt", weights_only=False)["step"] == 6
+
+    package = tmp_path / "package"
+    shutil.copytree(
+        Path(fixture_package), package, ignore=shutil.ignore_patterns("steer*", "inverse", "joint", "reference")
+    )
+    joint_net.export(run / "joint.pt", package)
+    policy = umpnet.Policy(str(package))
+    env = umpnet.Env("Laptop", seed=2, split="test", copy=True, resolution=policy.resolution)
+    image = env.reset()["image"]
+    model, _ = joint_net.load(run / "joint.pt")
+    with torch.no_grad():
+        fields = model(torch.from_numpy(image[None]))[0].numpy()
+    pixel = tuple(int(v) for v in env.scripted_action("oracle"))
+    assert policy.frame_joint(image, pixel) == umpnet._umpnet.joint_from_fields(image, fields, pixel)
+    report = frame_joint.measure(run / "joint.pt", "test", 1)
+    assert report["all"]["n"] > 0 and report["by_true_type"]["revolute"]["n"] > 0
+    assert frame_joint.measure(package, "test", 1)["all"]["n"] == report["all"]["n"]
+
+
+def test_export_refuses_a_package_of_another_size(tmp_path, fixture_package):
+    run = tmp_path / "run"
+    run.mkdir()
+    joint_net.train(dataclasses.replace(SMALL, height=24, width=32, frames=4, steps=1), run, resume=False)
+    package = tmp_path / "package"
+    shutil.copytree(
+        Path(fixture_package), package, ignore=shutil.ignore_patterns("steer*", "inverse", "joint", "reference")
+    )
+    try:
+        joint_net.export(run / "joint.pt", package)
+    except ValueError as e:
+        assert "input 48x64, JointNet 24x32" in str(e)
+    else:
+        raise AssertionError("exported a 24x32 JointNet into a 48x64 package")
+    assert "joint" not in (package / "model.json").read_text().split('"files"')[1].split("}")[0]

@@ -1,0 +1,307 @@
+"""JointNet (beyond the paper): a joint's type, axis and origin from one RGB-D
+frame, trained on the simulator's dense articulation labels alone.
+
+    python -m umpnet_train.joint_net --out ../runs/joint [--steps 3000] [--resume]
+    python -m umpnet_train.joint_net --out ../runs/joint --export ../models/umpnet-small
+
+A U-Net reads the observation (N x H x W x 10, as the position network does)
+and predicts, at every pixel (FlowBot++'s dense articulation parameters):
+
+- whether the pixel is on a part a joint moves (1 logit);
+- whether that joint is a hinge rather than a slide (1 logit);
+- the scaled articulation flow: the opening direction times the point's speed
+  relative to its part's fastest point (3);
+- the joint's axis, up to sign (3);
+- for a hinge, the vector from the point to the nearest point on its axis (3, m).
+
+A unit flow or a speed is a poor cue for where a hinge is (on a flat door every
+point moves the same way, and the speed must be read across the whole part);
+the projection to the axis is learnt per pixel and voted over the part.
+`umpnet_policy::joint` does the vote in the runtime, from the exported
+`joint.onnx`; `frame_joint` measures it against the simulator.
+
+The frames are the training categories' training instances at random joint
+states, some with the gripper holding the part after a few oracle moves; the
+test categories and the training categories' held-out instances are never
+seen.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import umpnet
+from torch.nn import functional as F
+
+from .models import CHANNELS, Normalize, UNet
+
+# Output channels of the exported network, in this order.
+OUTPUTS = (
+    "movable",
+    "revolute",
+    "flow_x",
+    "flow_y",
+    "flow_z",
+    "axis_x",
+    "axis_y",
+    "axis_z",
+    "to_axis_x",
+    "to_axis_y",
+    "to_axis_z",
+)
+
+
+@dataclass
+class JointConfig:
+    height: int = 96
+    width: int = 128
+    widths: tuple[int, ...] = (16, 32, 64, 128)
+    frames: int = 6000  # the dataset: frames generated once from `seed`
+    steps: int = 6000
+    batch: int = 16
+    lr: float = 2e-3
+    max_oracle_moves: int = 3  # frames after 0..N oracle moves (the gripper visible after a grasp)
+    seed: int = 0
+
+
+class JointNet(torch.nn.Module):
+    def __init__(self, cfg: JointConfig):
+        super().__init__()
+        self.norm = Normalize()
+        self.unet = UNet(CHANNELS, tuple(cfg.widths), len(OUTPUTS), global_context=True)
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        """observation N x H x W x 10 -> N x 11 x H x W (OUTPUTS)."""
+        return self.unet(self.norm(observation.permute(0, 3, 1, 2)))
+
+
+def joint_labels(image: np.ndarray, fields: dict) -> dict:
+    """Per-pixel labels of one frame from the simulator's fields: each joint's
+    exact axis and origin are the rigid motion its exact scaled flow fits."""
+    from .frame_joint import fit_joint
+
+    h, w = fields["joint"].shape
+    joint = fields["joint"]
+    scaled = fields["flow"] * fields["speed"][..., None]
+    kind = np.full((h, w), -1, np.int8)  # -1 off parts or unknown, 0 slide, 1 hinge
+    axis = np.zeros((h, w, 3), np.float32)
+    to_axis = np.zeros((h, w, 3), np.float32)
+    points = image[..., 0:3]
+    for j in np.unique(joint[joint >= 0]):
+        on = joint == j
+        fit = fit_joint(points[on], scaled[on])
+        if fit is None:
+            continue
+        axis[on] = fit["axis"]
+        if fit["type"] == "revolute":
+            kind[on] = 1
+            p = points[on] - fit["origin"]
+            to_axis[on] = np.outer(p @ fit["axis"], fit["axis"]) - p
+        else:
+            kind[on] = 0
+    return {"movable": joint >= 0, "kind": kind, "flow": scaled, "axis": axis, "to_axis": to_axis}
+
+
+def frame(env: umpnet.Env, rng: np.random.Generator, max_moves: int) -> tuple[np.ndarray, dict]:
+    """One frame at a random state: a new scene, then 0..max_moves oracle moves."""
+    obs = env.reset()
+    moves = int(rng.integers(0, max_moves + 1))
+    if moves:
+        pixel = env.scripted_action("oracle")
+        obs, info = env.step_position(int(pixel[0]), int(pixel[1]))
+        for _ in range(moves - 1):
+            if not info.get("valid", True):
+                break
+            d = env.scripted_action("oracle")
+            if d is None:
+                break
+            obs, _, info = env.step_direction([float(v) for v in d])
+    image = obs["image"].copy()
+    return image, joint_labels(image, env.articulation_fields())
+
+
+def make_dataset(cfg: JointConfig) -> dict[str, np.ndarray]:
+    """`cfg.frames` frames, spread evenly over the training categories."""
+    rng = np.random.default_rng(cfg.seed)
+    names = [n for n, split, _ in umpnet.categories() if split == "train"]
+    envs = {
+        n: umpnet.Env(
+            n, seed=cfg.seed + i, task="exploration", split="train", copy=True, resolution=(cfg.height, cfg.width)
+        )
+        for i, n in enumerate(names)
+    }
+    h, w = cfg.height, cfg.width
+    data = {
+        "image": np.zeros((cfg.frames, h, w, CHANNELS), np.float16),
+        "movable": np.zeros((cfg.frames, h, w), bool),
+        "kind": np.zeros((cfg.frames, h, w), np.int8),
+        "flow": np.zeros((cfg.frames, h, w, 3), np.float16),
+        "axis": np.zeros((cfg.frames, h, w, 3), np.float16),
+        "to_axis": np.zeros((cfg.frames, h, w, 3), np.float16),
+    }
+    for i in range(cfg.frames):
+        image, labels = frame(envs[names[i % len(names)]], rng, cfg.max_oracle_moves)
+        data["image"][i] = image
+        for k, v in labels.items():
+            data[k][i] = v
+    return data
+
+
+def joint_losses(out: torch.Tensor, batch: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    movable = batch["movable"]
+    valid = batch["image"][..., 9] > 0
+    kind = batch["kind"]
+    known, hinge = kind >= 0, kind == 1
+    o = out.permute(0, 2, 3, 1)  # N x H x W x 11
+    # Parts are a small share of an image: weigh them as much as the rest.
+    share = movable[valid].float().mean().clamp(1e-3, 0.5)
+    weight = torch.where(movable, 0.5 / share, 0.5 / (1 - share))[valid]
+    losses = {
+        "movable": F.binary_cross_entropy_with_logits(o[..., 0][valid], movable[valid].float(), weight=weight),
+    }
+    if known.any():
+        # Hinges cover more pixels than slides: weigh the two kinds alike.
+        h_share = hinge[known].float().mean().clamp(0.05, 0.95)
+        kind_weight = torch.where(hinge[known], 0.5 / h_share, 0.5 / (1 - h_share))
+        losses["revolute"] = F.binary_cross_entropy_with_logits(
+            o[..., 1][known], hinge[known].float(), weight=kind_weight
+        )
+        losses["flow"] = (o[..., 2:5][known] - batch["flow"][known]).pow(2).sum(-1).mean()
+        cos = F.cosine_similarity(o[..., 5:8][known], batch["axis"][known], dim=-1, eps=1e-6)
+        losses["axis"] = (1 - cos.abs()).mean()
+    if hinge.any():
+        losses["to_axis"] = F.smooth_l1_loss(o[..., 8:11][hinge], batch["to_axis"][hinge], beta=0.05) * 10
+    return losses
+
+
+def train(cfg: JointConfig, out: Path, resume: bool) -> JointNet:
+    torch.manual_seed(cfg.seed)
+    model = JointNet(cfg)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    step = 0
+    out.mkdir(parents=True, exist_ok=True)
+    checkpoint = out / "joint.pt"
+    if resume and checkpoint.exists():
+        ck = torch.load(checkpoint, map_location="cpu", weights_only=False)
+        model.load_state_dict(ck["model"])
+        opt.load_state_dict(ck["optimizer"])
+        step = ck["step"]
+    t0 = time.perf_counter()
+    data = make_dataset(cfg)
+    print(f"{cfg.frames} frames in {time.perf_counter() - t0:.0f} s", flush=True)
+    rng = np.random.default_rng(cfg.seed + step)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, cfg.steps, last_epoch=step - 1 if step else -1)
+    model.train()
+    t0 = time.perf_counter()
+    while step < cfg.steps:
+        idx = np.sort(rng.choice(cfg.frames, cfg.batch, replace=False))
+        batch = {
+            k: torch.from_numpy(v[idx].astype(np.float32) if v.dtype == np.float16 else v[idx]) for k, v in data.items()
+        }
+        batch["kind"] = batch["kind"].long()
+        losses = joint_losses(model(batch["image"]), batch)
+        total = sum(losses.values())
+        opt.zero_grad()
+        total.backward()
+        opt.step()
+        sched.step()
+        step += 1
+        if step % 50 == 0 or step == cfg.steps:
+            rate = 50 * cfg.batch / (time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            print(
+                f"step {step}: "
+                + " ".join(f"{k} {v.item():.3f}" for k, v in losses.items())
+                + f" ({rate:.0f} frames/s)",
+                flush=True,
+            )
+        if step % 250 == 0 or step == cfg.steps:
+            save(model, opt, cfg, step, checkpoint)
+    return model
+
+
+def save(model, opt, cfg: JointConfig, step: int, path: Path) -> None:
+    tmp = path.with_suffix(".tmp")
+    torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(), "config": asdict(cfg), "step": step}, tmp)
+    tmp.replace(path)
+
+
+def load(path: Path) -> tuple[JointNet, JointConfig]:
+    ck = torch.load(path, map_location="cpu", weights_only=False)
+    cfg = JointConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in ck["config"].items()})
+    model = JointNet(cfg)
+    model.load_state_dict(ck["model"])
+    model.eval()
+    return model, cfg
+
+
+def export(checkpoint: Path, package: Path) -> None:
+    """Adds the JointNet of `checkpoint` to a model package."""
+    model, cfg = load(checkpoint)
+    export_joint(model, cfg, package)
+
+
+def export_joint(model: JointNet, cfg: JointConfig, package: Path) -> None:
+    """Writes `joint.onnx` into a model package (its input size must match),
+    checked against PyTorch, and names it in model.json's `files.joint`."""
+    import onnxruntime as ort
+
+    meta_path = package / "model.json"
+    meta = json.loads(meta_path.read_text())
+    size = (meta["input"]["height"], meta["input"]["width"])
+    if size != (cfg.height, cfg.width):
+        raise ValueError(f"{package}: input {size[0]}x{size[1]}, JointNet {cfg.height}x{cfg.width}")
+    model.eval()
+    obs = torch.zeros(1, cfg.height, cfg.width, CHANNELS)
+    obs[..., 9] = 2.0
+    path = package / "joint.onnx"
+    torch.onnx.export(
+        model,
+        (obs,),
+        str(path),
+        input_names=["observation"],
+        output_names=["joint_fields"],
+        dynamic_axes={"observation": {0: "n"}, "joint_fields": {0: "n"}},
+        opset_version=17,
+        dynamo=False,
+    )
+    with torch.no_grad():
+        expected = model(obs).numpy()
+    got = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"]).run(None, {"observation": obs.numpy()})[0]
+    worst = float(np.abs(expected - got).max())
+    if worst > 1e-3:
+        raise ValueError(f"{path}: ONNX differs from PyTorch by {worst}")
+    meta["files"]["joint"] = "joint.onnx"
+    meta["joint"] = {"outputs": list(OUTPUTS), "config": asdict(cfg), "export_check": {"max_abs_diff": worst}}
+    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", type=Path, required=True, help="the run's folder (joint.pt)")
+    p.add_argument("--steps", type=int, default=JointConfig.steps)
+    p.add_argument("--frames", type=int, default=JointConfig.frames)
+    p.add_argument("--seed", type=int, default=JointConfig.seed)
+    p.add_argument("--resume", action="store_true", help="continue OUT/joint.pt")
+    p.add_argument("--export", type=Path, metavar="PACKAGE", help="add OUT/joint.pt to this package, no training")
+    a = p.parse_args(argv)
+    if a.steps <= 0 or a.frames < 16:
+        p.error("--steps must be positive and --frames at least 16 (one batch)")
+    try:
+        if a.export:
+            export(a.out / "joint.pt", a.export)
+            return 0
+        train(JointConfig(steps=a.steps, frames=a.frames, seed=a.seed), a.out, a.resume)
+    except (OSError, ValueError, KeyError) as e:
+        p.error(str(e))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
