@@ -194,3 +194,50 @@ fn mismatches_are_reported_in_one_line() {
         "{e}"
     );
 }
+
+#[test]
+fn a_joint_net_is_optional_and_checked_like_the_other_networks() {
+    let Some(dir) = fixture() else { return };
+    let joint = dir.join("joint");
+    let pkg = ModelPackage::load(&joint, 1, 1, None).unwrap();
+    assert!(pkg.has_joint());
+    let obs = ndarray::Array4::<f32>::zeros((2, 48, 64, 10));
+    let fields = pkg.joint_fields(obs.view()).unwrap().unwrap();
+    assert_eq!(fields.shape(), &[2, 11, 48, 64]);
+    // The fixture's JointNet: movable (logit 5), a slide (-5), flow and axis +x.
+    assert_eq!(
+        fields.slice(ndarray::s![1, .., 7, 9]).to_vec(),
+        vec![5.0, -5.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    );
+    let plain = ModelPackage::load(&dir, 1, 1, None).unwrap();
+    assert!(!plain.has_joint() && plain.joint_fields(obs.view()).unwrap().is_none());
+
+    let tmp = tempfile::tempdir().unwrap();
+    let edited = |edit: &dyn Fn(&mut serde_json::Value)| {
+        for f in std::fs::read_dir(&joint).unwrap() {
+            let f = f.unwrap().path();
+            std::fs::copy(&f, tmp.path().join(f.file_name().unwrap())).unwrap();
+        }
+        let mut meta: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(joint.join("model.json")).unwrap())
+                .unwrap();
+        edit(&mut meta);
+        std::fs::write(tmp.path().join("model.json"), meta.to_string()).unwrap();
+        ModelPackage::load(tmp.path(), 1, 1, None)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default()
+    };
+    let e = edited(&|m| m["files"]["joint"] = "nope.onnx".into());
+    assert!(e.contains("nope.onnx: missing"), "{e}");
+    let e = edited(&|m| m["files"]["joint"] = "../joint.onnx".into());
+    assert!(
+        e.contains("expected a file name in the package folder"),
+        "{e}"
+    );
+    let e = edited(&|m| m["files"]["joint"] = "position.onnx".into());
+    assert!(
+        e.contains("position.onnx") && e.contains("output `joint_fields` missing"),
+        "{e}"
+    );
+}
