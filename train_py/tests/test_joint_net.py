@@ -85,6 +85,25 @@ def test_a_short_run_learns_resumes_exports_and_the_runtime_reads_it(tmp_path, f
     report = frame_joint.measure(run / "joint.pt", "test", 1)
     assert report["all"]["n"] > 0 and report["by_true_type"]["revolute"]["n"] > 0
     assert frame_joint.measure(package, "test", 1)["all"]["n"] == report["all"]["n"]
+    # Objects made elsewhere: an MJCF cabinet imported as an object folder.
+    from umpnet.objects import import_mjcf
+
+    objects = tmp_path / "objects"
+    import_mjcf(Path(__file__).resolve().parents[2] / "tests/data/mjcf/two_door_cabinet.xml", objects)
+    on_objects = frame_joint.measure(package, "test", 2, objects=objects)
+    assert list(on_objects["by_category"]) == ["two_door_cabinet"] and on_objects["all"]["n"] == 2
+    assert sum(t["n"] for t in on_objects["by_true_type"].values()) == 2
+
+
+def test_color_jitter_changes_colours_alone_and_keeps_them_in_range():
+    image = torch.rand(8, 6, 7, 10)
+    before = image.clone()
+    joint_net.jitter_colors(image, np.random.default_rng(0))
+    assert torch.equal(image[..., :3], before[..., :3]) and torch.equal(image[..., 6:], before[..., 6:])
+    rgb = image[..., 3:6]
+    assert rgb.min() >= 0 and rgb.max() <= 1 and not torch.allclose(rgb, before[..., 3:6])
+    grey = (rgb[..., 0] == rgb[..., 1]).all(dim=(1, 2))
+    assert 0 < int(grey.sum()) < 8, "some images grey, not all"
 
 
 def test_export_refuses_a_package_of_another_size(tmp_path, fixture_package):

@@ -157,19 +157,28 @@ def rust_estimate(estimate: dict | None) -> dict | None:
             "origin": None if point is None else np.array(point)}  # fmt: skip
 
 
-def measure(source: Path, split: str, episodes: int, seed: int = 0, part: str = "predicted") -> dict:
+def measure(
+    source: Path, split: str, episodes: int, seed: int = 0, part: str = "predicted", objects: Path | None = None
+) -> dict:
     """`part`: predicted (the part the network sees, connected to the grasp)
     or truth (the simulator's pixels of the grasped part, so the flow alone is
-    measured; a policy checkpoint's flow head only)."""
+    measured; a policy checkpoint's flow head only). With `objects`, the rows
+    are its object folders (each with a mobility.urdf, as `umpnet eval
+    --objects` reads them) instead of the split's categories."""
     (height, width), predict = load_source(source)
     if part == "truth" and predict.__name__ != "from_flow_head":
         raise ValueError("--part truth measures a policy checkpoint's flow head; a JointNet finds its own part")
     rows = []
-    names = [name for name, s, _ in umpnet.categories() if s == split]
-    for category in names:
+    if objects is None:
+        scenes = {name: {"category": name, "split": split} for name, s, _ in umpnet.categories() if s == split}
+    else:
+        folders = sorted(d for d in objects.iterdir() if (d / "mobility.urdf").is_file())
+        if not folders:
+            raise ValueError(f"{objects}: no object folder (with a mobility.urdf) in it")
+        scenes = {d.name: {"object_dir": str(d)} for d in folders}
+    for category, where in scenes.items():
         for k in range(episodes):
-            env = umpnet.Env(category, seed=seed + k, task="exploration", split=split, copy=True,
-                             resolution=(height, width))  # fmt: skip
+            env = umpnet.Env(seed=seed + k, task="exploration", copy=True, resolution=(height, width), **where)
             image = env.reset()["image"]
             grasp = tuple(int(v) for v in env.scripted_action("oracle"))
             truth_fields = env.articulation_fields()
@@ -246,10 +255,11 @@ def main(argv=None) -> int:
         choices=("predicted", "truth"),
         help="the grasped part's pixels: what the network predicts as moving, or the simulator's (flow alone)",
     )
+    p.add_argument("--objects", type=Path, help="score these object folders (e.g. data/external) instead of the split")
     p.add_argument("--json", type=Path, help="write the whole report here")
     a = p.parse_args(argv)
     try:
-        report = measure(a.source, a.split, a.episodes, part=a.part)
+        report = measure(a.source, a.split, a.episodes, part=a.part, objects=a.objects)
     except (OSError, ValueError, KeyError) as e:
         p.error(str(e))
     if a.json:

@@ -67,6 +67,9 @@ class JointConfig:
     batch: int = 16
     lr: float = 2e-3
     max_oracle_moves: int = 3  # frames after 0..N oracle moves (the gripper visible after a grasp)
+    # Each image's colours under a random gain and offset per channel (a grey
+    # image one time in four): parts are told by their shape, not their paint.
+    color_jitter: bool = True
     seed: int = 0
 
 
@@ -180,6 +183,22 @@ def joint_losses(out: torch.Tensor, batch: dict[str, torch.Tensor]) -> dict[str,
     return losses
 
 
+def jitter_colors(image: torch.Tensor, rng: np.random.Generator) -> None:
+    """In place on N x H x W x 10 observations: rgb' = rgb x gain + offset,
+    clipped to [0, 1], per image and channel; one image in four made grey
+    (and kept so)."""
+    n = image.shape[0]
+    rgb = image[..., 3:6]
+    grey = torch.from_numpy(rng.random(n) < 0.25)
+    rgb[grey] = rgb[grey].mean(-1, keepdim=True).expand(-1, -1, -1, 3).clone()
+    gain = torch.from_numpy(rng.uniform(0.6, 1.4, (n, 1, 1, 3)).astype(np.float32))
+    offset = torch.from_numpy(rng.uniform(-0.2, 0.2, (n, 1, 1, 3)).astype(np.float32))
+    # A grey image stays grey: one gain and offset for its three channels.
+    gain[grey] = gain[grey][..., :1].expand(-1, -1, -1, 3).clone()
+    offset[grey] = offset[grey][..., :1].expand(-1, -1, -1, 3).clone()
+    image[..., 3:6] = (rgb * gain + offset).clamp(0, 1)
+
+
 def train(cfg: JointConfig, out: Path, resume: bool) -> JointNet:
     torch.manual_seed(cfg.seed)
     model = JointNet(cfg)
@@ -205,6 +224,8 @@ def train(cfg: JointConfig, out: Path, resume: bool) -> JointNet:
             k: torch.from_numpy(v[idx].astype(np.float32) if v.dtype == np.float16 else v[idx]) for k, v in data.items()
         }
         batch["kind"] = batch["kind"].long()
+        if cfg.color_jitter:
+            jitter_colors(batch["image"], rng)
         losses = joint_losses(model(batch["image"]), batch)
         total = sum(losses.values())
         opt.zero_grad()
@@ -289,6 +310,7 @@ def main(argv=None) -> int:
     p.add_argument("--frames", type=int, default=JointConfig.frames)
     p.add_argument("--seed", type=int, default=JointConfig.seed)
     p.add_argument("--resume", action="store_true", help="continue OUT/joint.pt")
+    p.add_argument("--no-color-jitter", action="store_true", help="train on the rendered colours as they are")
     p.add_argument("--export", type=Path, metavar="PACKAGE", help="add OUT/joint.pt to this package, no training")
     a = p.parse_args(argv)
     if a.steps <= 0 or a.frames < 16:
@@ -297,7 +319,11 @@ def main(argv=None) -> int:
         if a.export:
             export(a.out / "joint.pt", a.export)
             return 0
-        train(JointConfig(steps=a.steps, frames=a.frames, seed=a.seed), a.out, a.resume)
+        train(
+            JointConfig(steps=a.steps, frames=a.frames, seed=a.seed, color_jitter=not a.no_color_jitter),
+            a.out,
+            a.resume,
+        )
     except (OSError, ValueError, KeyError) as e:
         p.error(str(e))
     return 0
