@@ -170,7 +170,9 @@ def measure(
         raise ValueError("--part truth measures a policy checkpoint's flow head; a JointNet finds its own part")
     rows = []
     if objects is None:
-        scenes = {name: {"category": name, "split": split} for name, s, _ in umpnet.categories() if s == split}
+        # As the benchmark: the test categories' instances, or the training
+        # categories' held-out ones (never those a model was trained on).
+        scenes = {name: {"category": name, "split": "test"} for name, s, _ in umpnet.categories() if s == split}
     else:
         folders = sorted(d for d in objects.iterdir() if (d / "mobility.urdf").is_file())
         if not folders:
@@ -247,7 +249,12 @@ def summarize(rows: list[dict], split: str, episodes: int, source: str) -> dict:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("source", type=Path, help="a package with a JointNet, a JointNet checkpoint, or a policy checkpoint")
-    p.add_argument("--split", default="test", choices=("train", "test"))
+    p.add_argument(
+        "--split",
+        default="test",
+        choices=("train", "test"),
+        help="the test categories, or the training categories' held-out instances",
+    )
     p.add_argument("--episodes", type=int, default=20, help="scenes per category")
     p.add_argument(
         "--part",

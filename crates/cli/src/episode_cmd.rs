@@ -427,8 +427,8 @@ fn print_frame_joint(f: &umpnet_eval::frame_joint::FrameJointScore) -> Result<()
         .map(|m| format!(", the axis passes {m:.3} m from the true one"))
         .unwrap_or_default();
     outln!(
-        "joint from the first frame (JointNet, {} part pixels, hinge probability {:.2}): {estimate}",
-        f.estimate.part_pixels,
+        "joint from the first frame (JointNet, {} voting pixels, hinge probability {:.2}): {estimate}",
+        f.estimate.voting_pixels,
         f.estimate.hinge_probability
     );
     outln!(

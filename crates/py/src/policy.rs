@@ -93,7 +93,7 @@ impl Policy {
     /// The joint of the part at `pixel` (row, col) read from this one
     /// observation (H x W x 10) by the package's JointNet: a dict with
     /// `type` ("revolute" or "prismatic"), `axis`, `point` (on a hinge's axis,
-    /// None for a slide; world frame), `hinge_probability` and `part_pixels`.
+    /// None for a slide; world frame), `hinge_probability` and `voting_pixels`.
     /// None when the package has no JointNet or too few part pixels voted.
     fn frame_joint<'py>(
         &self,
@@ -263,7 +263,7 @@ fn frame_joint_dict<'py>(py: Python<'py>, j: &FrameJoint) -> PyResult<Bound<'py,
     d.set_item("axis", axis.to_vec())?;
     d.set_item("point", point.map(|p| p.to_vec()))?;
     d.set_item("hinge_probability", j.hinge_probability)?;
-    d.set_item("part_pixels", j.part_pixels)?;
+    d.set_item("voting_pixels", j.voting_pixels)?;
     Ok(d)
 }
 
