@@ -1038,6 +1038,12 @@ def test_a_package_with_a_joint_net_reports_the_grasped_parts_joint_from_one_fra
     assert out["joint"]["voting_pixels"] > 20 and out["joint"]["hinge_probability"] < 0.01
     plain = json.loads(run("--json", "infer", *frame, "--model", str(Path(fixture_package) / "steer")).stdout)
     assert plain["joint"] is None
+    # joint45: the move stays within 45 degrees of the line the joint moves the part along.
+    filtered = json.loads(run("--json", "infer", *frame, "--model", joint_pkg, "--direction-filter", "joint45").stdout)
+    assert abs(filtered["direction"][0]) >= math.sqrt(0.5) - 1e-6, filtered
+    assert abs(plain["direction"][0]) < math.sqrt(0.5), "the filter changed the move"
+    p = run("infer", *frame, "--model", str(Path(fixture_package) / "steer"), "--direction-filter", "joint45", check=False)
+    assert p.returncode == 1 and "has none (model.json `files.joint`)" in p.stderr, p.stderr
     # Laptop seed 2: the fixture's position net grasps the lid, a hinge about x.
     args = (
         "explore",

@@ -624,6 +624,9 @@ pub(crate) fn decide(
     rng: &mut rand_chacha::ChaCha8Rng,
 ) -> Result<serde_json::Value> {
     let mode = inputs.mode();
+    // The joint of the grasped part from this frame alone (a package with a
+    // JointNet): reported, and read by the joint45 filter.
+    let joint = inputs.policy.frame_joint(inputs.obs.view(), pixel_small)?;
     let input = DecisionInput {
         observation: inputs.obs.view(),
         reference: reference.view(),
@@ -631,6 +634,7 @@ pub(crate) fn decide(
         banned,
         previous,
         mode,
+        joint: joint.as_ref().map(|j| &j.estimate),
     };
     let model = &inputs.model;
     let Some(r) = inputs
@@ -659,8 +663,6 @@ pub(crate) fn decide(
             model.display()
         );
     }
-    // The joint of the grasped part from this frame alone (a package with a JointNet).
-    let joint = inputs.policy.frame_joint(inputs.obs.view(), pixel_small)?;
     Ok(serde_json::json!({
         "pixel": [pixel_full.0, pixel_full.1],
         "point_in_world": point.map(|p| [p.x, p.y, p.z]),

@@ -59,6 +59,8 @@ pub struct LearnedPolicy {
     rng: ChaCha8Rng,
     memory: EpisodeMemory,
     reference: Option<Array3<f32>>,
+    /// The grasped part's joint read at the grasp, for the joint45 filter.
+    joint: Option<umpnet_policy::axis::JointEstimate>,
 }
 
 impl LearnedPolicy {
@@ -70,6 +72,7 @@ impl LearnedPolicy {
             rng: ChaCha8Rng::seed_from_u64(0),
             memory: EpisodeMemory::default(),
             reference: None,
+            joint: None,
         }
     }
 
@@ -110,6 +113,7 @@ impl Policy for LearnedPolicy {
         self.rng = ChaCha8Rng::seed_from_u64(seed);
         self.memory.clear();
         self.reference = None;
+        self.joint = None;
     }
     fn position(&mut self, obs: &Observation<'_>, env: &SimEnv) -> Result<(u32, u32)> {
         self.check_resolution(obs.frame)?;
@@ -118,6 +122,12 @@ impl Policy for LearnedPolicy {
         let goal = (env.scene().task == Task::Goal).then_some(reference.view());
         let choice = self.policy.position(current.view(), goal)?;
         self.reference = Some(reference);
+        if self.policy.direction_filter == DirectionFilter::Joint45 {
+            self.joint = self
+                .policy
+                .frame_joint(current.view(), choice.pixel)?
+                .map(|j| j.estimate);
+        }
         Ok((choice.pixel.0 as u32, choice.pixel.1 as u32))
     }
     fn direction(
@@ -152,6 +162,7 @@ impl Policy for LearnedPolicy {
             banned: self.memory.banned(),
             previous: self.memory.previous(),
             mode,
+            joint: self.joint.as_ref(),
         };
         let mut out = self.policy.directions(
             std::slice::from_ref(&input),

@@ -42,6 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         banned: &[],
         previous: None,
         mode: Mode::Explore,
+        joint: None,
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let decision = policy

@@ -25,6 +25,21 @@ pub enum JointEstimate {
     },
 }
 
+impl JointEstimate {
+    /// The unit direction the joint moves a point at `p` (world frame), up
+    /// to sign: the axis for a slide, the tangent of the circle about the
+    /// axis for a hinge. None on a hinge's axis.
+    pub fn motion_at(&self, p: Vector3<f32>) -> Option<Vector3<f32>> {
+        let v = match self {
+            Self::Prismatic { axis } => Vector3::from(*axis),
+            Self::Revolute { axis, point } => {
+                Vector3::from(*axis).cross(&(p - Vector3::from(*point)))
+            }
+        };
+        (v.norm() > 1e-6 && v.iter().all(|x| x.is_finite())).then(|| v.normalize())
+    }
+}
+
 /// Angle in degrees between two axes, ignoring their sign.
 pub fn axis_angle_deg(a: &Vector3<f32>, b: &Vector3<f32>) -> f32 {
     (a.normalize().dot(&b.normalize()).abs().clamp(0.0, 1.0))
@@ -166,6 +181,28 @@ mod tests {
             (d - axis * axis.dot(&d)).norm() < 0.01,
             "axis position off by {}",
             d.norm()
+        );
+    }
+
+    #[test]
+    fn a_joint_moves_a_point_along_its_slide_or_its_circle() {
+        let slide = JointEstimate::Prismatic {
+            axis: [0.0, 0.0, 1.0],
+        };
+        assert_eq!(
+            slide.motion_at(Vector3::new(3.0, 1.0, 0.0)),
+            Some(Vector3::z())
+        );
+        let hinge = JointEstimate::Revolute {
+            axis: [0.0, 0.0, 1.0],
+            point: [1.0, 0.0, 0.0],
+        };
+        let t = hinge.motion_at(Vector3::new(1.0, 2.0, 5.0)).unwrap();
+        assert!((t - Vector3::new(-1.0, 0.0, 0.0)).norm() < 1e-6, "{t:?}");
+        assert_eq!(
+            hinge.motion_at(Vector3::new(1.0, 0.0, 3.0)),
+            None,
+            "on the axis"
         );
     }
 

@@ -32,6 +32,10 @@ pub struct DecisionInput<'a> {
     pub previous: Option<Vector3<f32>>,
     /// Exploring or seeking the reference state.
     pub mode: Mode,
+    /// The grasped part's joint as the package's JointNet read it from the
+    /// episode's first frame ([`UmpnetPolicy::frame_joint`]), which the
+    /// `joint45` filter reads; None without one.
+    pub joint: Option<&'a crate::axis::JointEstimate>,
 }
 
 // The filter is one of model.json's closed sets; it is named here too,
@@ -198,6 +202,13 @@ impl UmpnetPolicy {
                     .into(),
             ));
         }
+        if self.direction_filter == DirectionFilter::Joint45 && !self.package.has_joint() {
+            return Err(PolicyError::Input(format!(
+                "{}: the joint45 direction filter reads the package's JointNet, and it has none \
+                 (model.json `files.joint`)",
+                self.package.dir.display()
+            )));
+        }
         if self.package.branches.goal_only() && inputs.iter().any(|i| i.mode != Mode::Goal) {
             return Err(PolicyError::Input(format!(
                 "{}: the Inverse model needs a goal to invert toward; it serves only the goal task",
@@ -317,6 +328,26 @@ impl UmpnetPolicy {
                     Some(p) => p,
                     None => continue,
                 },
+                DirectionFilter::Joint45 => {
+                    let (r, c) = on_image(inp.pixel, (h, w));
+                    let gripper = Vector3::new(
+                        inp.observation[[r, c, 0]],
+                        inp.observation[[r, c, 1]],
+                        inp.observation[[r, c, 2]],
+                    );
+                    let Some(line) = inp.joint.and_then(|j| j.motion_at(gripper)) else {
+                        continue;
+                    };
+                    for (d, s) in cands[i].iter().zip(scores[i].iter_mut()) {
+                        if d.dot(&line).abs() < std::f32::consts::FRAC_1_SQRT_2 {
+                            *s = Score {
+                                distance: -1.0,
+                                aot: 0,
+                            };
+                        }
+                    }
+                    continue;
+                }
             };
             for (d, s) in cands[i].iter().zip(scores[i].iter_mut()) {
                 if d.dot(&keep) < 0.0 {

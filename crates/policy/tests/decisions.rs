@@ -180,6 +180,7 @@ fn decide_at(
             banned,
             previous: None,
             mode,
+            joint: None,
         })
         .collect();
     let mut rngs: Vec<ChaCha8Rng> = (0..obs.len())
@@ -323,6 +324,7 @@ fn the_inverse_baseline_acts_on_its_regressed_direction_in_the_goal_task_only() 
         banned: &[],
         previous: None,
         mode: Mode::Explore,
+        joint: None,
     };
     let err = policy.directions(&[input], &mut rngs).err().unwrap();
     assert!(
@@ -343,6 +345,7 @@ fn explore<'a>(
         banned: &[],
         previous: None,
         mode: Mode::Explore,
+        joint: None,
     }
 }
 
@@ -432,6 +435,7 @@ fn the_prev90_filter_rules_out_turning_back_on_the_last_move() {
         let input = DecisionInput {
             previous,
             mode,
+            joint: None,
             ..explore(&obs, &obs, (h / 2, w / 2))
         };
         policy.directions(&[input], &mut [ChaCha8Rng::seed_from_u64(3)])
@@ -468,7 +472,70 @@ fn direction_filters_are_named_as_in_model_json() {
     }
     let err = "prev45".parse::<DirectionFilter>().unwrap_err();
     assert!(
-        err.to_string().contains("none, normal90 or prev90"),
+        err.to_string()
+            .contains("none, normal90, prev90 or joint45"),
         "{err}"
     );
+}
+
+#[test]
+fn the_joint45_filter_keeps_directions_along_the_joint_the_package_read() {
+    use umpnet_policy::axis::JointEstimate;
+    use umpnet_policy::policy::DirectionFilter;
+    let Some(policy) = policy("joint") else {
+        return;
+    };
+    let policy = policy.with_direction_filter(DirectionFilter::Joint45);
+    let obs = observation(&policy, 11);
+    let (h, w) = policy.resolution();
+    let pixel = (h / 2, w / 2);
+    let gripper = Vector3::new(
+        obs[[pixel.0, pixel.1, 0]],
+        obs[[pixel.0, pixel.1, 1]],
+        obs[[pixel.0, pixel.1, 2]],
+    );
+    let hinge = JointEstimate::Revolute {
+        axis: [0.0, 0.0, 1.0],
+        point: (gripper - Vector3::new(0.5, 0.0, 0.0)).into(),
+    };
+    let slide = JointEstimate::Prismatic {
+        axis: [0.0, 0.6, 0.8],
+    };
+    // A hinge about z half a metre in -x of the gripper moves it along y.
+    for (joint, line) in [
+        (&hinge, Vector3::new(0.0, 1.0, 0.0)),
+        (&slide, Vector3::new(0.0, 0.6, 0.8)),
+    ] {
+        for mode in [Mode::Explore, Mode::Goal] {
+            let input = DecisionInput {
+                joint: Some(joint),
+                mode,
+                ..explore(&obs, &obs, pixel)
+            };
+            let mut rng = vec![ChaCha8Rng::seed_from_u64(3)];
+            let r = policy.directions(&[input], &mut rng).unwrap().remove(0);
+            for (d, s) in r.candidates.iter().zip(&r.scores) {
+                let along = d.dot(&line).abs() >= std::f32::consts::FRAC_1_SQRT_2;
+                assert_eq!(s.distance >= 0.0, along, "{d:?} {s:?}");
+            }
+            let chosen = r.direction.unwrap();
+            assert!(chosen.dot(&line).abs() >= std::f32::consts::FRAC_1_SQRT_2);
+        }
+    }
+    // Without a joint (the vote found no part) nothing is ruled out.
+    let mut rng = vec![ChaCha8Rng::seed_from_u64(3)];
+    let r = policy
+        .directions(&[explore(&obs, &obs, pixel)], &mut rng)
+        .unwrap()
+        .remove(0);
+    assert!(r.scores.iter().all(|s| s.distance >= 0.0));
+    // A package without a JointNet cannot serve the filter.
+    let plain = self::policy("steer")
+        .unwrap()
+        .with_direction_filter(DirectionFilter::Joint45);
+    let err = plain
+        .directions(&[explore(&obs, &obs, pixel)], &mut rng)
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("has none"), "{err}");
 }

@@ -152,6 +152,7 @@ impl Policy {
                 banned: &[],
                 previous: None,
                 mode,
+                joint: None,
             })
             .collect();
         let mut rngs: Vec<rand_chacha::ChaCha8Rng> = (0..b)
@@ -215,6 +216,7 @@ impl Policy {
             banned: self.memory.banned(),
             previous: self.memory.previous(),
             mode,
+            joint: None,
         };
         let (inner, rng) = (&self.inner, &mut self.rng);
         let mut out = py

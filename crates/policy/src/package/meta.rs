@@ -94,11 +94,16 @@ pub enum DirectionFilter {
     /// paper's Where2Act+HP and UMPNet+HP): no back-and-forth. Exploration
     /// only: a goal may lie behind the last move.
     Prev90,
+    /// Only directions within 45 degrees of the line the grasped part moves
+    /// along at the gripper, by the joint the package's JointNet reads from
+    /// the episode's first frame (beyond the paper; a package with a
+    /// JointNet only). Forward or back stays the Dist and AoT heads' call.
+    Joint45,
 }
 
 impl DirectionFilter {
     /// Every filter, in the order the help lists them.
-    pub const ALL: [DirectionFilter; 3] = [Self::None, Self::Normal90, Self::Prev90];
+    pub const ALL: [DirectionFilter; 4] = [Self::None, Self::Normal90, Self::Prev90, Self::Joint45];
 
     /// The name in model.json's `direction_filter` and on the command line.
     pub fn name(self) -> &'static str {
@@ -106,6 +111,7 @@ impl DirectionFilter {
             Self::None => "none",
             Self::Normal90 => "normal90",
             Self::Prev90 => "prev90",
+            Self::Joint45 => "joint45",
         }
     }
 }
@@ -118,7 +124,7 @@ impl std::str::FromStr for DirectionFilter {
             .find(|f| f.name() == s)
             .ok_or_else(|| {
                 PolicyError::Input(format!(
-                    "unknown direction filter `{s}`; expected none, normal90 or prev90"
+                    "unknown direction filter `{s}`; expected none, normal90, prev90 or joint45"
                 ))
             })
     }
