@@ -211,6 +211,9 @@ def train(cfg: JointConfig, out: Path, resume: bool) -> JointNet:
         model.load_state_dict(ck["model"])
         opt.load_state_dict(ck["optimizer"])
         step = ck["step"]
+    from .train import git_commit
+
+    commit = git_commit()  # at the start: the code may be edited while the run goes on
     t0 = time.perf_counter()
     data = make_dataset(cfg)
     print(f"{cfg.frames} frames in {time.perf_counter() - t0:.0f} s", flush=True)
@@ -243,13 +246,14 @@ def train(cfg: JointConfig, out: Path, resume: bool) -> JointNet:
                 flush=True,
             )
         if step % 250 == 0 or step == cfg.steps:
-            save(model, opt, cfg, step, checkpoint)
+            save(model, opt, cfg, step, checkpoint, commit)
     return model
 
 
-def save(model, opt, cfg: JointConfig, step: int, path: Path) -> None:
+def save(model, opt, cfg: JointConfig, step: int, path: Path, commit: str | None) -> None:
     tmp = path.with_suffix(".tmp")
-    torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(), "config": asdict(cfg), "step": step}, tmp)
+    state = {"model": model.state_dict(), "optimizer": opt.state_dict(), "config": asdict(cfg), "step": step}
+    torch.save({**state, "git_commit": commit}, tmp)
     tmp.replace(path)
 
 
@@ -265,10 +269,17 @@ def load(path: Path) -> tuple[JointNet, JointConfig]:
 def export(checkpoint: Path, package: Path) -> None:
     """Adds the JointNet of `checkpoint` to a model package."""
     model, cfg = load(checkpoint)
-    export_joint(model, cfg, package)
+    ck = torch.load(checkpoint, map_location="cpu", weights_only=False)
+    provenance = {
+        "command": "python -m umpnet_train.joint_net",
+        "steps": ck["step"],
+        "git_commit": ck.get("git_commit"),
+        "checkpoint": checkpoint.name,
+    }
+    export_joint(model, cfg, package, provenance)
 
 
-def export_joint(model: JointNet, cfg: JointConfig, package: Path) -> None:
+def export_joint(model: JointNet, cfg: JointConfig, package: Path, provenance: dict | None = None) -> None:
     """Writes `joint.onnx` into a model package (its input size must match),
     checked against PyTorch, and names it in model.json's `files.joint`."""
     import onnxruntime as ort
@@ -299,7 +310,12 @@ def export_joint(model: JointNet, cfg: JointConfig, package: Path) -> None:
     if worst > 1e-3:
         raise ValueError(f"{path}: ONNX differs from PyTorch by {worst}")
     meta["files"]["joint"] = "joint.onnx"
-    meta["joint"] = {"outputs": list(OUTPUTS), "config": asdict(cfg), "export_check": {"max_abs_diff": worst}}
+    meta["joint"] = {
+        "outputs": list(OUTPUTS),
+        "config": asdict(cfg),
+        "provenance": provenance or {},
+        "export_check": {"max_abs_diff": worst},
+    }
     meta_path.write_text(json.dumps(meta, indent=2) + "\n")
 
 
