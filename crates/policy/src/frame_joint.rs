@@ -210,7 +210,8 @@ pub fn joint_from_fields(
             point: on_axis.into(),
         }
     } else {
-        if !(flow.norm() > 1e-6) {
+        // NaN fails this test too: a flow of NaN votes nothing.
+        if flow.norm().partial_cmp(&1e-6) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
         JointEstimate::Prismatic {
