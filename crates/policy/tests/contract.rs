@@ -125,28 +125,30 @@ fn outputs_match_python_onnxruntime() {
     eprintln!("max |rust - python onnxruntime| = {worst:.2e}");
 }
 
+/// Copies the package in `dir` to `to` with its model.json edited by `edit`,
+/// and loads it: the error, or "" when it loads.
+fn load_edited(dir: &Path, to: &Path, edit: &dyn Fn(&mut serde_json::Value)) -> String {
+    for f in std::fs::read_dir(dir).unwrap() {
+        let f = f.unwrap().path();
+        if f.is_file() {
+            std::fs::copy(&f, to.join(f.file_name().unwrap())).unwrap();
+        }
+    }
+    let mut meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap()).unwrap();
+    edit(&mut meta);
+    std::fs::write(to.join("model.json"), meta.to_string()).unwrap();
+    ModelPackage::load(to, 1, 1, None)
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default()
+}
+
 #[test]
 fn mismatches_are_reported_in_one_line() {
     let Some(dir) = fixture() else { return };
     let tmp = tempfile::tempdir().unwrap();
-    let copy = |edit: &dyn Fn(&mut serde_json::Value)| {
-        for f in [
-            "position.onnx",
-            "direction_encoder.onnx",
-            "direction_decoder.onnx",
-        ] {
-            std::fs::copy(dir.join(f), tmp.path().join(f)).unwrap();
-        }
-        let mut meta: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap())
-                .unwrap();
-        edit(&mut meta);
-        std::fs::write(tmp.path().join("model.json"), meta.to_string()).unwrap();
-        ModelPackage::load(tmp.path(), 1, 1, None)
-            .err()
-            .map(|e| e.to_string())
-            .unwrap_or_default()
-    };
+    let copy = |edit: &dyn Fn(&mut serde_json::Value)| load_edited(&dir, tmp.path(), edit);
     let e = copy(&|m| m["version"] = 99.into());
     assert!(e.contains("`version` is 99"), "{e}");
     let e = copy(&|m| m["input"]["width"] = 65.into());
@@ -213,21 +215,7 @@ fn a_joint_net_is_optional_and_checked_like_the_other_networks() {
     assert!(!plain.has_joint() && plain.joint_fields(obs.view()).unwrap().is_none());
 
     let tmp = tempfile::tempdir().unwrap();
-    let edited = |edit: &dyn Fn(&mut serde_json::Value)| {
-        for f in std::fs::read_dir(&joint).unwrap() {
-            let f = f.unwrap().path();
-            std::fs::copy(&f, tmp.path().join(f.file_name().unwrap())).unwrap();
-        }
-        let mut meta: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(joint.join("model.json")).unwrap())
-                .unwrap();
-        edit(&mut meta);
-        std::fs::write(tmp.path().join("model.json"), meta.to_string()).unwrap();
-        ModelPackage::load(tmp.path(), 1, 1, None)
-            .err()
-            .map(|e| e.to_string())
-            .unwrap_or_default()
-    };
+    let edited = |edit: &dyn Fn(&mut serde_json::Value)| load_edited(&joint, tmp.path(), edit);
     let e = edited(&|m| m["files"]["joint"] = "nope.onnx".into());
     assert!(e.contains("nope.onnx: missing"), "{e}");
     let e = edited(&|m| m["files"]["joint"] = "../joint.onnx".into());
