@@ -1042,7 +1042,9 @@ def test_a_package_with_a_joint_net_reports_the_grasped_parts_joint_from_one_fra
     filtered = json.loads(run("--json", "infer", *frame, "--model", joint_pkg, "--direction-filter", "joint45").stdout)
     assert abs(filtered["direction"][0]) >= math.sqrt(0.5) - 1e-6, filtered
     assert abs(plain["direction"][0]) < math.sqrt(0.5), "the filter changed the move"
-    p = run("infer", *frame, "--model", str(Path(fixture_package) / "steer"), "--direction-filter", "joint45", check=False)
+    p = run(
+        "infer", *frame, "--model", str(Path(fixture_package) / "steer"), "--direction-filter", "joint45", check=False
+    )
     assert p.returncode == 1 and "has none (model.json `files.joint`)" in p.stderr, p.stderr
     # Laptop seed 2: the fixture's position net grasps the lid, a hinge about x.
     args = (
