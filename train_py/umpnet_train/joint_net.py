@@ -33,13 +33,16 @@ import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
-import umpnet
 from torch.nn import functional as F
 
 from .models import CHANNELS, Normalize, UNet
+
+if TYPE_CHECKING:
+    import umpnet
 
 # Output channels of the exported network, in this order.
 OUTPUTS = (
@@ -133,6 +136,10 @@ def frame(env: umpnet.Env, rng: np.random.Generator, max_moves: int) -> tuple[np
 
 def make_dataset(cfg: JointConfig) -> dict[str, np.ndarray]:
     """`cfg.frames` frames, spread evenly over the training categories."""
+    # Here, not at the top: the fixture exports a JointNet before the
+    # bindings are built (make fixture), and that needs no frames.
+    import umpnet
+
     rng = np.random.default_rng(cfg.seed)
     names = [n for n, split, _ in umpnet.categories() if split == "train"]
     envs = {
