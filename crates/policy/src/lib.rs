@@ -7,6 +7,7 @@ pub mod cem;
 /// Errors of the runtime: bad input, a bad package, ONNX Runtime failing.
 pub mod error;
 pub mod frame_joint;
+pub mod goal_shift;
 pub mod memory;
 pub mod observation;
 

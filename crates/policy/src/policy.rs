@@ -176,6 +176,42 @@ impl UmpnetPolicy {
         })
     }
 
+    /// Refuses a direction filter or a model the inputs' tasks cannot use.
+    fn check_filter_and_task(&self, inputs: &[DecisionInput<'_>]) -> Result<()> {
+        if self.direction_filter == DirectionFilter::Prev90
+            && inputs.iter().any(|i| i.mode == Mode::Goal)
+        {
+            return Err(PolicyError::Input(
+                "the prev90 direction filter serves exploration only: in the goal task the \
+                 way to the goal may lie behind the last move"
+                    .into(),
+            ));
+        }
+        if self.direction_filter == DirectionFilter::Joint45 && !self.package.has_joint() {
+            return Err(PolicyError::Input(format!(
+                "{}: the joint45 direction filter reads the package's JointNet, and it has none \
+                 (model.json `files.joint`)",
+                self.package.dir.display()
+            )));
+        }
+        if self.direction_filter == DirectionFilter::Goal45
+            && inputs.iter().any(|i| i.mode != Mode::Goal)
+        {
+            return Err(PolicyError::Input(
+                "the goal45 direction filter serves the goal task only: exploring, there is no \
+                 goal frame to read the way from"
+                    .into(),
+            ));
+        }
+        if self.package.branches.goal_only() && inputs.iter().any(|i| i.mode != Mode::Goal) {
+            return Err(PolicyError::Input(format!(
+                "{}: the Inverse model needs a goal to invert toward; it serves only the goal task",
+                self.package.dir.display()
+            )));
+        }
+        Ok(())
+    }
+
     /// Decides directions for several environments: one encoder call for all,
     /// one decoder call per CEM round for all candidates of all environments.
     pub fn directions(
@@ -193,28 +229,7 @@ impl UmpnetPolicy {
         if inputs.is_empty() {
             return Ok(Vec::new());
         }
-        if self.direction_filter == DirectionFilter::Prev90
-            && inputs.iter().any(|i| i.mode == Mode::Goal)
-        {
-            return Err(PolicyError::Input(
-                "the prev90 direction filter serves exploration only: in the goal task the \
-                 way to the goal may lie behind the last move"
-                    .into(),
-            ));
-        }
-        if self.direction_filter == DirectionFilter::Joint45 && !self.package.has_joint() {
-            return Err(PolicyError::Input(format!(
-                "{}: the joint45 direction filter reads the package's JointNet, and it has none \
-                 (model.json `files.joint`)",
-                self.package.dir.display()
-            )));
-        }
-        if self.package.branches.goal_only() && inputs.iter().any(|i| i.mode != Mode::Goal) {
-            return Err(PolicyError::Input(format!(
-                "{}: the Inverse model needs a goal to invert toward; it serves only the goal task",
-                self.package.dir.display()
-            )));
-        }
+        self.check_filter_and_task(inputs)?;
         let (h, w) = self.resolution();
         let b = inputs.len();
         let mut obs = Array4::<f32>::zeros((b, h, w, CHANNELS));
@@ -249,8 +264,9 @@ impl UmpnetPolicy {
             .zip(rngs.iter_mut())
             .map(|(inp, rng)| first_round(rng, inp.banned, n))
             .collect();
+        let rules = self.rules(inputs);
         let mut s1 = self.score(&de, &ae, &first)?;
-        self.filter(inputs, &first, &mut s1);
+        self.filter(&rules, &first, &mut s1);
         if uniform {
             return Ok((0..b)
                 .map(|i| CemResult {
@@ -267,7 +283,7 @@ impl UmpnetPolicy {
             .map(|(i, (inp, rng))| second_round(rng, &first[i], &s1[i], inp.mode, inp.banned, n))
             .collect();
         let mut s2 = self.score(&de, &ae, &second)?;
-        self.filter(inputs, &second, &mut s2);
+        self.filter(&rules, &second, &mut s2);
         Ok((0..b)
             .map(|i| {
                 let candidates: Vec<Vector3<f32>> =
@@ -304,57 +320,61 @@ impl UmpnetPolicy {
             .collect())
     }
 
-    /// Scores the directions that [`DirectionFilter`] rules out as "no
-    /// effect", so that CEM neither resamples around them nor picks them.
-    fn filter(
-        &self,
-        inputs: &[DecisionInput<'_>],
-        cands: &[Vec<Vector3<f32>>],
-        scores: &mut [Vec<Score>],
-    ) {
+    /// What [`DirectionFilter`] keeps of each environment's candidates,
+    /// decided once per decision (the `goal45` filter compares frames).
+    fn rules(&self, inputs: &[DecisionInput<'_>]) -> Vec<Keep> {
         let (h, w) = self.resolution();
-        for (i, inp) in inputs.iter().enumerate() {
-            let keep = match self.direction_filter {
-                DirectionFilter::None => continue,
-                DirectionFilter::Normal90 => {
-                    let (r, c) = on_image(inp.pixel, (h, w));
+        inputs
+            .iter()
+            .map(|inp| {
+                let (r, c) = on_image(inp.pixel, (h, w));
+                let at = |k: usize| {
                     Vector3::new(
-                        inp.observation[[r, c, 6]],
-                        inp.observation[[r, c, 7]],
-                        inp.observation[[r, c, 8]],
+                        inp.observation[[r, c, k]],
+                        inp.observation[[r, c, k + 1]],
+                        inp.observation[[r, c, k + 2]],
                     )
+                };
+                let gripper = at(0);
+                match self.direction_filter {
+                    DirectionFilter::None => Keep::All,
+                    DirectionFilter::Normal90 => Keep::HalfSpace(at(6)),
+                    DirectionFilter::Prev90 => inp.previous.map_or(Keep::All, Keep::HalfSpace),
+                    DirectionFilter::Joint45 => inp
+                        .joint
+                        .and_then(|j| j.motion_at(gripper))
+                        .map_or(Keep::All, Keep::Line),
+                    DirectionFilter::Goal45 => goal_way(inp, gripper),
                 }
-                DirectionFilter::Prev90 => match inp.previous {
-                    Some(p) => p,
-                    None => continue,
-                },
-                DirectionFilter::Joint45 => {
-                    let (r, c) = on_image(inp.pixel, (h, w));
-                    let gripper = Vector3::new(
-                        inp.observation[[r, c, 0]],
-                        inp.observation[[r, c, 1]],
-                        inp.observation[[r, c, 2]],
-                    );
-                    let Some(line) = inp.joint.and_then(|j| j.motion_at(gripper)) else {
-                        continue;
-                    };
-                    for (d, s) in cands[i].iter().zip(scores[i].iter_mut()) {
-                        if d.dot(&line).abs() < std::f32::consts::FRAC_1_SQRT_2 {
-                            *s = Score {
-                                distance: -1.0,
-                                aot: 0,
-                            };
+            })
+            .collect()
+    }
+
+    /// Scores the directions the rule rules out as "no effect", so that CEM
+    /// neither resamples around them nor picks them; the `goal45` filter also
+    /// sets the Arrow of Time of the directions it keeps: toward the goal.
+    fn filter(&self, rules: &[Keep], cands: &[Vec<Vector3<f32>>], scores: &mut [Vec<Score>]) {
+        let no_effect = Score {
+            distance: -1.0,
+            aot: 0,
+        };
+        for ((rule, cands), scores) in rules.iter().zip(cands).zip(scores.iter_mut()) {
+            for (d, s) in cands.iter().zip(scores.iter_mut()) {
+                match rule {
+                    Keep::All => {}
+                    Keep::HalfSpace(v) if d.dot(v) < 0.0 => *s = no_effect,
+                    Keep::HalfSpace(_) => {}
+                    Keep::Line(v) if d.dot(v).abs() < std::f32::consts::FRAC_1_SQRT_2 => {
+                        *s = no_effect
+                    }
+                    Keep::Line(_) => {}
+                    Keep::Way { way, aot } => {
+                        if d.dot(way) < std::f32::consts::FRAC_1_SQRT_2 {
+                            *s = no_effect;
+                        } else {
+                            s.aot = *aot;
                         }
                     }
-                    continue;
-                }
-            };
-            for (d, s) in cands[i].iter().zip(scores[i].iter_mut()) {
-                if d.dot(&keep) < 0.0 {
-                    *s = Score {
-                        distance: -1.0,
-                        aot: 0,
-                    };
                 }
             }
         }
@@ -396,6 +416,35 @@ impl UmpnetPolicy {
             row += c.len();
         }
         Ok(out)
+    }
+}
+
+/// What a direction filter keeps of one decision's candidates.
+enum Keep {
+    All,
+    /// Within 90 degrees of this direction.
+    HalfSpace(Vector3<f32>),
+    /// Within 45 degrees of this line, either way.
+    Line(Vector3<f32>),
+    /// Within 45 degrees of `way`, with this Arrow of Time.
+    Way {
+        way: Vector3<f32>,
+        aot: i8,
+    },
+}
+
+/// The `goal45` filter's rule: toward where the goal frame shows the part
+/// that the current frame does not ([`crate::goal_shift::change`]). Where
+/// the frames say nothing (the goal state hidden from the camera, or
+/// reached), onward along the last move if it moved the part, else
+/// whatever the heads choose.
+fn goal_way(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
+    let shift = crate::goal_shift::change(&inp.observation, &inp.reference, gripper)
+        .and_then(|c| c.shift.try_normalize(1e-6));
+    match (shift, inp.previous) {
+        (Some(way), _) => Keep::Way { way, aot: -1 },
+        (None, Some(p)) if !inp.banned.contains(&p) => Keep::Way { way: p, aot: -1 },
+        _ => Keep::All,
     }
 }
 

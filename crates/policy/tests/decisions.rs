@@ -473,7 +473,7 @@ fn direction_filters_are_named_as_in_model_json() {
     let err = "prev45".parse::<DirectionFilter>().unwrap_err();
     assert!(
         err.to_string()
-            .contains("none, normal90, prev90 or joint45"),
+            .contains("none, normal90, prev90, joint45 or goal45"),
         "{err}"
     );
 }
@@ -538,4 +538,89 @@ fn the_joint45_filter_keeps_directions_along_the_joint_the_package_read() {
         .err()
         .unwrap();
     assert!(err.to_string().contains("has none"), "{err}");
+}
+
+/// An H x W observation through a pinhole at the origin looking down +z of
+/// a wall at z = 2 with a 0.4 m panel in front of it at depth `z`, centred
+/// at (`x`, 0).
+fn panel(policy: &UmpnetPolicy, x: f32, z: f32) -> Array3<f32> {
+    let (h, w) = policy.resolution();
+    let f = w as f32;
+    let mut obs = Array3::<f32>::zeros((h, w, CHANNELS));
+    for r in 0..h {
+        for c in 0..w {
+            let u = (c as f32 + 0.5 - w as f32 / 2.0) / f;
+            let v = (r as f32 + 0.5 - h as f32 / 2.0) / f;
+            let depth = if (u * z - x).abs() < 0.2 && (v * z).abs() < 0.2 {
+                z
+            } else {
+                2.0
+            };
+            obs[[r, c, 0]] = u * depth;
+            obs[[r, c, 1]] = v * depth;
+            obs[[r, c, 2]] = depth;
+            obs[[r, c, 9]] = depth;
+        }
+    }
+    obs
+}
+
+#[test]
+fn the_goal45_filter_moves_toward_where_the_goal_frame_shows_the_part() {
+    use umpnet_policy::policy::DirectionFilter;
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let policy = policy.with_direction_filter(DirectionFilter::Goal45);
+    let (h, w) = policy.resolution();
+    let pixel = (h / 2, w / 2);
+    // The goal shows the panel 0.25 m to the right: +x, the way the steer
+    // package's Arrow of Time calls forward (away from any goal).
+    let (now, goal) = (panel(&policy, 0.0, 1.2), panel(&policy, 0.25, 1.2));
+    let decide = |previous: Option<Vector3<f32>>, banned: &[Vector3<f32>], goal: &Array3<f32>| {
+        let input = DecisionInput {
+            mode: Mode::Goal,
+            previous,
+            banned,
+            ..explore(&now, goal, pixel)
+        };
+        policy
+            .directions(&[input], &mut [ChaCha8Rng::seed_from_u64(5)])
+            .unwrap()
+            .remove(0)
+    };
+    let r = decide(None, &[], &goal);
+    for (d, s) in r.candidates.iter().zip(&r.scores) {
+        if d.x >= std::f32::consts::FRAC_1_SQRT_2 {
+            assert_eq!(s.aot, -1, "toward the goal: {d:?} {s:?}");
+            assert!(s.distance >= 0.0, "{d:?} {s:?}");
+        } else {
+            assert_eq!((s.distance, s.aot), (-1.0, 0), "{d:?}");
+        }
+    }
+    let chosen = r.direction.unwrap();
+    assert!(chosen.x >= std::f32::consts::FRAC_1_SQRT_2, "{chosen:?}");
+    // Frames that show no change: onward along a last move that moved the
+    // part, the heads' own call after one that did not.
+    let up = Vector3::new(0.0, 0.0, -1.0);
+    let onward = decide(Some(up), &[], &now).direction.unwrap();
+    assert!(
+        onward.dot(&up) >= std::f32::consts::FRAC_1_SQRT_2,
+        "{onward:?}"
+    );
+    let heads = decide(Some(up), &[up], &now);
+    assert!(heads.scores.iter().all(|s| s.distance >= 0.0));
+    assert!(
+        heads.direction.unwrap().x < -0.9,
+        "the steer heads' goal move"
+    );
+    // Exploring there is no goal frame: refused by name.
+    let err = policy
+        .directions(
+            &[explore(&now, &now, pixel)],
+            &mut [ChaCha8Rng::seed_from_u64(5)],
+        )
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("goal45"), "{err}");
 }

@@ -99,11 +99,23 @@ pub enum DirectionFilter {
     /// the episode's first frame (beyond the paper; a package with a
     /// JointNet only). Forward or back stays the Dist and AoT heads' call.
     Joint45,
+    /// Goal task only: only directions within 45 degrees of the way from
+    /// where the current frame shows the part to where the goal frame shows
+    /// it, read off the two frames' geometry (beyond the paper; any
+    /// package). It takes the Arrow-of-Time head's forward-or-back call; the
+    /// Dist head ranks the directions kept.
+    Goal45,
 }
 
 impl DirectionFilter {
     /// Every filter, in the order the help lists them.
-    pub const ALL: [DirectionFilter; 4] = [Self::None, Self::Normal90, Self::Prev90, Self::Joint45];
+    pub const ALL: [DirectionFilter; 5] = [
+        Self::None,
+        Self::Normal90,
+        Self::Prev90,
+        Self::Joint45,
+        Self::Goal45,
+    ];
 
     /// The name in model.json's `direction_filter` and on the command line.
     pub fn name(self) -> &'static str {
@@ -112,6 +124,7 @@ impl DirectionFilter {
             Self::Normal90 => "normal90",
             Self::Prev90 => "prev90",
             Self::Joint45 => "joint45",
+            Self::Goal45 => "goal45",
         }
     }
 }
@@ -124,7 +137,7 @@ impl std::str::FromStr for DirectionFilter {
             .find(|f| f.name() == s)
             .ok_or_else(|| {
                 PolicyError::Input(format!(
-                    "unknown direction filter `{s}`; expected none, normal90, prev90 or joint45"
+                    "unknown direction filter `{s}`; expected none, normal90, prev90, joint45 or goal45"
                 ))
             })
     }
