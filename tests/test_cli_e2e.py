@@ -1073,3 +1073,20 @@ def test_a_package_with_a_joint_net_reports_the_grasped_parts_joint_from_one_fra
         run("--json", *args[:-4], "--model", str(Path(fixture_package) / "steer"), "--steps", "1").stdout
     )
     assert "frame_joint" not in without
+
+
+def test_the_goal45_filter_reads_the_way_to_the_goal_off_the_frames():
+    """goal45 keeps the moves toward where the goal frame shows the part: on
+    a door the shipped package's Arrow-of-Time head turns the wrong way
+    (Door, seed 5), the filter reaches the goal; exploring it is refused by name."""
+    model = str(ROOT / "models" / "umpnet-small")
+    args = ("--json", "goal", "--category", "Door", "--seed", "5", "--policy", "umpnet", "--model", model,
+            "--steps", "6")  # fmt: skip
+    plain = json.loads(run(*args).stdout)
+    filtered = json.loads(run(*args, "--direction-filter", "goal45").stdout)
+    assert plain["valid_position"] and filtered["valid_position"]
+    assert not plain["metrics"]["success"] and plain["metrics"]["normalized_distance"] > 0.5, plain["metrics"]
+    assert filtered["metrics"]["success"], filtered["metrics"]
+    p = run("explore", "--category", "Door", "--seed", "5", "--policy", "umpnet", "--model", model,
+            "--direction-filter", "goal45", "--steps", "2", check=False)  # fmt: skip
+    assert p.returncode == 1 and "goal45 direction filter serves the goal task only" in p.stderr, p.stderr
