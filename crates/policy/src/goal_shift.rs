@@ -17,7 +17,7 @@ use ndarray::ArrayView3;
 /// How far (m) a point must stand in front of the surface another frame
 /// shows at its pixel to count as in that frame's empty space: depth noise
 /// and the thickness of a part's edge stay under it.
-pub const FREE_SPACE_MARGIN: f32 = 0.03;
+pub const FREE_SPACE_MARGIN: f32 = 0.015;
 /// Points farther than this from the gripper (m) are not compared: a part
 /// moves less than this within one goal.
 pub const REACH: f32 = 0.9;
@@ -143,6 +143,13 @@ impl Pinhole {
         (q[2] > 1e-6).then(|| (q[0] / q[2], q[1] / q[2], q[2]))
     }
 
+    /// The camera's centre (world frame); None for a degenerate projection.
+    pub fn centre(&self) -> Option<Vector3<f32>> {
+        let m = self.projection.fixed_view::<3, 3>(0, 0).into_owned();
+        let c = -m.try_inverse()? * self.projection.column(3);
+        c.iter().all(|v| v.is_finite()).then(|| c.cast::<f32>())
+    }
+
     /// The pixel (column, row, as real numbers) and depth of a world point
     /// in front of the camera.
     pub fn project(&self, p: Vector3<f32>) -> Option<(f32, f32, f32)> {
@@ -159,13 +166,19 @@ impl Pinhole {
 pub struct Change {
     /// Mean of the arriving points minus mean of the departing ones (m).
     pub shift: Vector3<f32>,
+    /// The goal frame shows none of the part's new place (fewer than
+    /// [`MIN_CHANGED`] points arrive): `shift` is then the unit direction
+    /// away from its camera through the departing points, where hidden
+    /// places lie.
+    pub hidden: bool,
     /// How many points arrive.
     pub arriving: usize,
     /// How many points depart.
     pub departing: usize,
 }
 
-/// Fewest arriving and departing points for a [`Change`] to say anything.
+/// Fewest departing points for a [`Change`] to say anything, and fewest
+/// arriving ones for it to read the goal's place off the goal frame.
 pub const MIN_CHANGED: usize = 5;
 
 /// The points of `a` within [`REACH`] of `near` that `b`'s camera sees empty
@@ -205,7 +218,8 @@ fn vacated(
 }
 
 /// The change from `current` to `target` about `near`; None when the
-/// frames' cameras cannot be recovered or too few points change.
+/// frames' cameras cannot be recovered or fewer than [`MIN_CHANGED`] points
+/// depart (nothing to move).
 pub fn change(
     current: &ArrayView3<'_, f32>,
     target: &ArrayView3<'_, f32>,
@@ -214,14 +228,25 @@ pub fn change(
     if current.dim() != target.dim() {
         return None;
     }
+    let goal_camera = Pinhole::fit(target)?;
     let arriving = vacated(target, current, &Pinhole::fit(current)?, near);
-    let departing = vacated(current, target, &Pinhole::fit(target)?, near);
-    if arriving.len() < MIN_CHANGED || departing.len() < MIN_CHANGED {
+    let departing = vacated(current, target, &goal_camera, near);
+    if departing.len() < MIN_CHANGED {
         return None;
     }
     let mean = |v: &[Vector3<f32>]| v.iter().sum::<Vector3<f32>>() / v.len() as f32;
+    let hidden = arriving.len() < MIN_CHANGED;
+    let shift = if hidden {
+        // The goal frame hides where the part goes: behind what it shows,
+        // deeper along the rays through where the part is now.
+        let from = mean(&departing);
+        (from - goal_camera.centre()?).try_normalize(1e-6)?
+    } else {
+        mean(&arriving) - mean(&departing)
+    };
     Some(Change {
-        shift: mean(&arriving) - mean(&departing),
+        shift,
+        hidden,
         arriving: arriving.len(),
         departing: departing.len(),
     })
@@ -301,8 +326,16 @@ mod tests {
     fn a_part_pushed_out_of_view_is_hidden_not_gone() {
         // Pushed back behind the wall: the goal frame shows the wall where
         // the panel would be, in front of it, so none of the goal's points
-        // arrive and the frames say nothing.
+        // arrive; the way is deeper along the rays through the panel.
         let near = Vector3::new(0.0, 0.0, 1.2);
-        assert!(change(&scene(0.0, 1.2).view(), &scene(0.0, 2.5).view(), near).is_none());
+        let c = change(&scene(0.0, 1.2).view(), &scene(0.0, 2.5).view(), near).unwrap();
+        assert!(c.hidden && c.arriving < MIN_CHANGED, "{c:?}");
+        assert!((c.shift - Vector3::z()).norm() < 0.05, "{c:?}");
+        // In view, the same move is read from the points.
+        let seen = change(&scene(0.0, 1.2).view(), &scene(0.35, 1.6).view(), near).unwrap();
+        assert!(
+            !seen.hidden && seen.shift.x > 0.1 && seen.shift.z > 0.1,
+            "{seen:?}"
+        );
     }
 }

@@ -435,16 +435,26 @@ enum Keep {
 
 /// The `goal45` filter's rule: toward where the goal frame shows the part
 /// that the current frame does not ([`crate::goal_shift::change`]). Where
-/// the frames say nothing (the goal state hidden from the camera, or
-/// reached), onward along the last move if it moved the part, else
-/// whatever the heads choose.
+/// the goal frame does not show the part's new place, onward along the last
+/// move if it moved the part, else deeper along the goal camera's rays
+/// through the part (where hidden places lie); with nothing changed, the
+/// heads choose.
 fn goal_way(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
-    let shift = crate::goal_shift::change(&inp.observation, &inp.reference, gripper)
+    let change = crate::goal_shift::change(&inp.observation, &inp.reference, gripper);
+    let moved = inp.previous.filter(|p| !inp.banned.contains(p));
+    let seen = change
+        .as_ref()
+        .filter(|c| !c.hidden)
         .and_then(|c| c.shift.try_normalize(1e-6));
-    match (shift, inp.previous) {
-        (Some(way), _) => Keep::Way { way, aot: -1 },
-        (None, Some(p)) if !inp.banned.contains(&p) => Keep::Way { way: p, aot: -1 },
-        _ => Keep::All,
+    let hidden = change
+        .as_ref()
+        .filter(|c| c.hidden)
+        .and_then(|c| c.shift.try_normalize(1e-6));
+    match (seen, moved, hidden) {
+        (Some(way), _, _) | (None, Some(way), _) | (None, None, Some(way)) => {
+            Keep::Way { way, aot: -1 }
+        }
+        (None, None, None) => Keep::All,
     }
 }
 

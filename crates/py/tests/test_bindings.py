@@ -177,6 +177,39 @@ def test_policy_reads_a_joint_from_one_frame_as_the_runtime_votes_it(fixture_pac
         umpnet._umpnet.joint_from_fields(image, fields[:5], (0, 0))
 
 
+def panel_image(h, w, x, z):
+    """An H x W observation through a pinhole at the origin looking down +z:
+    a wall at z = 2 and a 0.4 m panel at depth z centred at (x, 0)."""
+    u = (np.arange(w) + 0.5 - w / 2) / w
+    v = (np.arange(h) + 0.5 - h / 2) / w
+    uu, vv = np.meshgrid(u, v)
+    on_panel = (np.abs(uu * z - x) < 0.2) & (np.abs(vv * z) < 0.2)
+    depth = np.where(on_panel, z, 2.0).astype(np.float32)
+    image = np.zeros((h, w, 10), np.float32)
+    image[..., 0], image[..., 1], image[..., 2], image[..., 9] = uu * depth, vv * depth, depth, depth
+    return image
+
+
+def test_a_packages_goal45_filter_steers_python_decisions_toward_the_goal_frame(fixture_package, tmp_path):
+    """A package whose model.json names goal45 moves toward where the goal
+    image shows the part (the steer package's own AoT would go -x), and
+    refuses to explore."""
+    import shutil
+
+    package = tmp_path / "steer-goal45"
+    shutil.copytree(Path(fixture_package) / "steer", package)
+    meta = json.loads((package / "model.json").read_text())
+    meta["direction_filter"] = "goal45"
+    (package / "model.json").write_text(json.dumps(meta))
+    pol = umpnet.Policy(str(package))
+    h, w = pol.resolution
+    now, goal = panel_image(h, w, 0.0, 1.2), panel_image(h, w, 0.25, 1.2)
+    out = pol.decide(now, goal, (h // 2, w // 2), mode="goal")
+    assert out["direction"][0] >= np.sqrt(0.5), out["direction"]
+    with pytest.raises(ValueError, match="goal45"):
+        pol.decide(now, now, (h // 2, w // 2), mode="explore")
+
+
 def test_torch_optimizer_after_rendering_in_the_same_process():
     """umpnet_train loads torch's lazy native parts before any environment renders
     (Mesa's LLVM then torch's segfaulted); check it in a fresh process."""
