@@ -43,22 +43,35 @@ pub(crate) struct Policy {
 #[pymethods]
 impl Policy {
     #[new]
-    #[pyo3(signature = (model_dir, seed=0, threads=1, onnxruntime=None))]
+    #[pyo3(signature = (model_dir, seed=0, threads=1, onnxruntime=None, direction_filter=None))]
     fn new(
         model_dir: PathBuf,
         seed: u64,
         threads: usize,
         onnxruntime: Option<PathBuf>,
+        direction_filter: Option<&str>,
     ) -> PyResult<Self> {
         if !(1..=MAX_THREADS).contains(&threads) {
             return Err(PyValueError::new_err(format!(
                 "threads = {threads}: expected 1 to {MAX_THREADS}"
             )));
         }
+        // Named before the package loads: a misspelt filter is the caller's
+        // error whatever the package holds.
+        let filter = direction_filter
+            .map(|f| {
+                f.parse::<umpnet_policy::policy::DirectionFilter>()
+                    .map_err(|e| PyValueError::new_err(format!("direction_filter: {e}")))
+            })
+            .transpose()?;
         let pkg = ModelPackage::load(&model_dir, 1, threads, onnxruntime.as_deref())
             .map_err(policy_err)?;
+        let mut inner = UmpnetPolicy::new(Arc::new(pkg));
+        if let Some(f) = filter {
+            inner = inner.with_direction_filter(f);
+        }
         Ok(Self {
-            inner: UmpnetPolicy::new(Arc::new(pkg)),
+            inner,
             rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed),
             memory: EpisodeMemory::default(),
             last: None,

@@ -190,24 +190,30 @@ def panel_image(h, w, x, z):
     return image
 
 
-def test_a_packages_goal45_filter_steers_python_decisions_toward_the_goal_frame(fixture_package, tmp_path):
-    """A package whose model.json names goal45 moves toward where the goal
-    image shows the part (the steer package's own AoT would go -x), and
-    refuses to explore."""
+def test_the_goal45_filter_steers_python_decisions_toward_the_goal_frame(fixture_package, tmp_path):
+    """goal45, named by the package's model.json or by Policy's
+    direction_filter, moves toward where the goal image shows the part (the
+    steer package's own AoT would go -x) and refuses to explore; a
+    misspelt filter is a ValueError naming the choices."""
     import shutil
 
+    steer = Path(fixture_package) / "steer"
     package = tmp_path / "steer-goal45"
-    shutil.copytree(Path(fixture_package) / "steer", package)
+    shutil.copytree(steer, package)
     meta = json.loads((package / "model.json").read_text())
     meta["direction_filter"] = "goal45"
     (package / "model.json").write_text(json.dumps(meta))
-    pol = umpnet.Policy(str(package))
-    h, w = pol.resolution
+    plain = umpnet.Policy(str(steer))
+    h, w = plain.resolution
     now, goal = panel_image(h, w, 0.0, 1.2), panel_image(h, w, 0.25, 1.2)
-    out = pol.decide(now, goal, (h // 2, w // 2), mode="goal")
-    assert out["direction"][0] >= np.sqrt(0.5), out["direction"]
-    with pytest.raises(ValueError, match="goal45"):
-        pol.decide(now, now, (h // 2, w // 2), mode="explore")
+    assert plain.decide(now, goal, (h // 2, w // 2), mode="goal")["direction"][0] < -0.9
+    for pol in (umpnet.Policy(str(package)), umpnet.Policy(str(steer), direction_filter="goal45")):
+        out = pol.decide(now, goal, (h // 2, w // 2), mode="goal")
+        assert out["direction"][0] >= np.sqrt(0.5), out["direction"]
+        with pytest.raises(ValueError, match="goal45"):
+            pol.decide(now, now, (h // 2, w // 2), mode="explore")
+    with pytest.raises(ValueError, match=r"direction_filter: .*unknown direction filter `goal90`.*goal45"):
+        umpnet.Policy(str(steer), direction_filter="goal90")
 
 
 def test_torch_optimizer_after_rendering_in_the_same_process():

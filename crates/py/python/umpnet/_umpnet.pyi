@@ -76,7 +76,12 @@ class VecEnv:
 
 class Policy:
     def __init__(
-        self, model_dir: str | os.PathLike[str], seed: int = 0, threads: int = 1, onnxruntime: str | None = None
+        self,
+        model_dir: str | os.PathLike[str],
+        seed: int = 0,
+        threads: int = 1,
+        onnxruntime: str | None = None,
+        direction_filter: str | None = None,
     ) -> None: ...
     @property
     def resolution(self) -> tuple[int, int]: ...

@@ -49,23 +49,31 @@ class Policy(_Policy):
     ``onnxruntime`` (a path to ``libonnxruntime.so.1.*``) or the
     ``ORT_DYLIB_PATH`` environment variable names another. The library is
     loaded once per process: the first Policy's choice holds.
+    ``direction_filter`` replaces the package's (``none``, ``normal90``,
+    ``prev90``, ``joint45`` or ``goal45``), as ``--direction-filter`` does
+    on the command line.
     """
 
-    def __new__(cls, model_dir, seed: int = 0, threads: int = 1, onnxruntime=None):
+    def __new__(cls, model_dir, seed: int = 0, threads: int = 1, onnxruntime=None, direction_filter=None):
         if onnxruntime is None and "ORT_DYLIB_PATH" not in os.environ:
             onnxruntime = onnxruntime_library()
         return super().__new__(
-            cls, os.fspath(model_dir), seed, threads, None if onnxruntime is None else os.fspath(onnxruntime)
+            cls,
+            os.fspath(model_dir),
+            seed,
+            threads,
+            None if onnxruntime is None else os.fspath(onnxruntime),
+            direction_filter,
         )
 
     @classmethod
-    def default(cls, seed: int = 0, threads: int = 1) -> Policy:
+    def default(cls, seed: int = 0, threads: int = 1, direction_filter: str | None = None) -> Policy:
         """The shipped model package (``umpnet-small``), as installed with the wheel."""
         if not (SHIPPED_MODEL / "model.json").is_file():
             raise FileNotFoundError(
                 f"the shipped model is not at {SHIPPED_MODEL}: this install of umpnet was built without it"
             )
-        return cls(SHIPPED_MODEL, seed=seed, threads=threads)
+        return cls(SHIPPED_MODEL, seed=seed, threads=threads, direction_filter=direction_filter)
 
     def act(self, obs: dict, task: str = "exploration", info: dict | None = None) -> dict:
         """The gym action for ``obs``: the grasp pixel in phase 0, then a
