@@ -10,6 +10,7 @@
 )]
 use crate::CHANNELS;
 use crate::axis::JointEstimate;
+use crate::observation::point_at as point;
 use nalgebra::{Matrix3, Vector3};
 use ndarray::{ArrayView3, s};
 use std::collections::VecDeque;
@@ -49,11 +50,6 @@ pub struct FrameJoint {
 
 fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
-}
-
-fn point(observation: &ArrayView3<'_, f32>, (r, c): (usize, usize)) -> Vector3<f32> {
-    let p = observation.slice(s![r, c, 0..3]);
-    Vector3::new(p[0], p[1], p[2])
 }
 
 fn field(fields: &ArrayView3<'_, f32>, first: usize, (r, c): (usize, usize)) -> Vector3<f32> {

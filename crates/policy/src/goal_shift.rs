@@ -11,6 +11,7 @@
     reason = "pixels are read inside the dimensions checked on entry and bounds-checked projections"
 )]
 use crate::CHANNELS;
+use crate::observation::point_at;
 use nalgebra::{DMatrix, Matrix3x4, Vector3, Vector4};
 use ndarray::ArrayView3;
 
@@ -198,7 +199,7 @@ fn vacated(
             if a[[r, c, 9]] <= 0.0 {
                 continue;
             }
-            let p = Vector3::new(a[[r, c, 0]], a[[r, c, 1]], a[[r, c, 2]]);
+            let p = point_at(a, (r, c));
             if !p.iter().all(|v| v.is_finite()) || (p - near).norm() > REACH {
                 continue;
             }

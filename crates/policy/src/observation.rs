@@ -106,6 +106,19 @@ impl CameraFrame<'_> {
 /// and one below, so bands share nothing and the overlap costs 2/BAND.
 const BAND: usize = 16;
 
+/// The world point (channels 0 to 2) of pixel (row, col) of an H x W x 10
+/// observation; the caller keeps the pixel inside it.
+pub(crate) fn point_at(
+    observation: &ndarray::ArrayView3<'_, f32>,
+    (r, c): (usize, usize),
+) -> Vector3<f32> {
+    Vector3::new(
+        observation[[r, c, 0]],
+        observation[[r, c, 1]],
+        observation[[r, c, 2]],
+    )
+}
+
 /// Builds the H x W x 10 observation. Normals come from the depth image: the
 /// cross product of the horizontal and vertical differences, each taken
 /// toward the neighbour closer in depth so that edges do not bleed.

@@ -6,7 +6,7 @@
 )]
 use crate::cem::{CemResult, Mode, Sampler, Score, first_round, second_round, select};
 use crate::error::{PolicyError, Result};
-use crate::observation::CHANNELS;
+use crate::observation::{CHANNELS, point_at};
 use crate::package::{Branches, ModelPackage};
 use nalgebra::Vector3;
 use ndarray::{Array2, Array4, ArrayView3, Axis};
@@ -266,7 +266,7 @@ impl UmpnetPolicy {
             .collect();
         let rules = self.rules(inputs);
         let mut s1 = self.score(&de, &ae, &first)?;
-        self.filter(&rules, &first, &mut s1);
+        Self::filter(&rules, &first, &mut s1);
         if uniform {
             return Ok((0..b)
                 .map(|i| CemResult {
@@ -283,7 +283,7 @@ impl UmpnetPolicy {
             .map(|(i, (inp, rng))| second_round(rng, &first[i], &s1[i], inp.mode, inp.banned, n))
             .collect();
         let mut s2 = self.score(&de, &ae, &second)?;
-        self.filter(&rules, &second, &mut s2);
+        Self::filter(&rules, &second, &mut s2);
         Ok((0..b)
             .map(|i| {
                 let candidates: Vec<Vector3<f32>> =
@@ -328,17 +328,14 @@ impl UmpnetPolicy {
             .iter()
             .map(|inp| {
                 let (r, c) = on_image(inp.pixel, (h, w));
-                let at = |k: usize| {
-                    Vector3::new(
-                        inp.observation[[r, c, k]],
-                        inp.observation[[r, c, k + 1]],
-                        inp.observation[[r, c, k + 2]],
-                    )
-                };
-                let gripper = at(0);
+                let gripper = point_at(&inp.observation, (r, c));
                 match self.direction_filter {
                     DirectionFilter::None => Keep::All,
-                    DirectionFilter::Normal90 => Keep::HalfSpace(at(6)),
+                    DirectionFilter::Normal90 => Keep::HalfSpace(Vector3::new(
+                        inp.observation[[r, c, 6]],
+                        inp.observation[[r, c, 7]],
+                        inp.observation[[r, c, 8]],
+                    )),
                     DirectionFilter::Prev90 => inp.previous.map_or(Keep::All, Keep::HalfSpace),
                     DirectionFilter::Joint45 => inp
                         .joint
@@ -353,7 +350,7 @@ impl UmpnetPolicy {
     /// Scores the directions the rule rules out as "no effect", so that CEM
     /// neither resamples around them nor picks them; the `goal45` filter also
     /// sets the Arrow of Time of the directions it keeps: toward the goal.
-    fn filter(&self, rules: &[Keep], cands: &[Vec<Vector3<f32>>], scores: &mut [Vec<Score>]) {
+    fn filter(rules: &[Keep], cands: &[Vec<Vector3<f32>>], scores: &mut [Vec<Score>]) {
         let no_effect = Score {
             distance: -1.0,
             aot: 0,
@@ -440,22 +437,15 @@ enum Keep {
 /// through the part (where hidden places lie); with nothing changed, the
 /// heads choose.
 fn goal_way(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
-    let change = crate::goal_shift::change(&inp.observation, &inp.reference, gripper);
+    // The change's unit shift, and whether it reads a hidden goal.
+    let change = crate::goal_shift::change(&inp.observation, &inp.reference, gripper)
+        .and_then(|c| Some((c.shift.try_normalize(1e-6)?, c.hidden)));
+    let seen = change.filter(|&(_, hidden)| !hidden).map(|(way, _)| way);
     let moved = inp.previous.filter(|p| !inp.banned.contains(p));
-    let seen = change
-        .as_ref()
-        .filter(|c| !c.hidden)
-        .and_then(|c| c.shift.try_normalize(1e-6));
-    let hidden = change
-        .as_ref()
-        .filter(|c| c.hidden)
-        .and_then(|c| c.shift.try_normalize(1e-6));
-    match (seen, moved, hidden) {
-        (Some(way), _, _) | (None, Some(way), _) | (None, None, Some(way)) => {
-            Keep::Way { way, aot: -1 }
-        }
-        (None, None, None) => Keep::All,
-    }
+    let hidden = change.filter(|&(_, hidden)| hidden).map(|(way, _)| way);
+    seen.or(moved)
+        .or(hidden)
+        .map_or(Keep::All, |way| Keep::Way { way, aot: -1 })
 }
 
 /// The most probable class of a row of AoT probabilities in the canonical
