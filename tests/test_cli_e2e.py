@@ -1090,3 +1090,44 @@ def test_the_goal45_filter_reads_the_way_to_the_goal_off_the_frames():
     p = run("explore", "--category", "Door", "--seed", "5", "--policy", "umpnet", "--model", model,
             "--direction-filter", "goal45", "--steps", "2", check=False)  # fmt: skip
     assert p.returncode == 1 and "goal45 direction filter serves the goal task only" in p.stderr, p.stderr
+
+
+def test_the_onward45_filter_explores_onward_along_where_the_gripper_went(tmp_path):
+    """onward45 keeps the moves within 45 degrees of the gripper's own last
+    motion and calls them forward: from --motion in one call, from --gripper
+    across a session's calls; a motion the part stopped within 2 cm says
+    nothing; a goal run and a malformed motion are refused by name."""
+    model = str(ROOT / "models" / "umpnet-small")
+    run("render", "--category", "Microwave", "--seed", "3", "--resolution", "96x128", "--out", str(tmp_path / "f"))
+    frame = ["--rgb", str(tmp_path / "f/color.png"), "--depth", str(tmp_path / "f/depth.npy"),
+             "--camera", str(tmp_path / "f/camera.json"), "--model", model]  # fmt: skip
+    onward = [*frame, "--direction-filter", "onward45"]
+
+    def along(out, way):
+        return sum(a * b for a, b in zip(out["direction"], way)) / math.hypot(*way)
+
+    for way in ([0.0, 0.12, 0.0], [-0.08, 0.0, -0.06]):
+        out = json.loads(
+            run("--json", "infer", *onward, "--grasp", "48,64", f"--motion={','.join(map(str, way))}").stdout
+        )
+        assert along(out, way) >= math.sqrt(0.5) - 1e-6 and out["predicted_aot"] == 1, (way, out)
+    # The heads' own choice where the gripper hardly went: not kept to it.
+    plain = json.loads(run("--json", "infer", *frame, "--grasp", "48,64").stdout)
+    small = json.loads(run("--json", "infer", *onward, "--grasp", "48,64", "--motion=0,0.01,0").stdout)
+    assert small["direction"] == plain["direction"], (small, plain)
+    # A session reads the motion from where --gripper says the gripper went.
+    s = str(tmp_path / "session")
+    first = json.loads(run("--json", "infer", "--session", s, *onward).stdout)
+    went = [0.0, 0.1, 0.05]
+    gripper = ",".join(f"{p + d:.5f}" for p, d in zip(first["point_in_world"], went))
+    second = json.loads(
+        run("--json", "infer", "--session", s, *onward, f"--gripper={gripper}", "--moved", "true").stdout
+    )
+    assert along(second, went) >= math.sqrt(0.5) - 1e-6 and second["predicted_aot"] == 1, second
+    for extra, code, says in [
+        (["--grasp", "48,64", "--motion", "1,2"], 2, "--motion takes x,y,z"),
+        (["--grasp", "48,64", "--reference", str(tmp_path / "f/color.png"), "--reference-depth",
+          str(tmp_path / "f/depth.npy")], 1, "onward45 direction filter serves exploration only"),
+    ]:  # fmt: skip
+        p = run("infer", *onward, *extra, check=False)
+        assert p.returncode == code and says in p.stderr, (extra, p.stderr)

@@ -46,8 +46,14 @@ pub struct InferArgs {
     /// `--direction-filter prev90` keeps the next one within 90 degrees of.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub previous: Vec<f32>,
+    /// How the gripper itself went over the last move (world x,y,z, metres,
+    /// from its own pose), which `--direction-filter goal45` and `onward45`
+    /// read; a session reads it from `--gripper` instead.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub motion: Vec<f32>,
     /// The policy's direction filter instead of its package's: none,
-    /// normal90 or prev90 (exploration only).
+    /// normal90, prev90 (exploration only), joint45, goal45 (goal only) or
+    /// onward45 (exploration only); docs/cli.md says what each keeps.
     #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::DirectionFilter>(crate::DIRECTION_FILTERS))]
     pub direction_filter: Option<umpnet_policy::policy::DirectionFilter>,
     #[command(flatten)]
@@ -65,7 +71,7 @@ pub struct InferArgs {
     /// call starts an episode (its frame becomes the exploration's
     /// reference, its grasp is chosen); each later call decides the next
     /// move with the episode's memory. See docs/cli.md.
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["initial", "initial_depth", "previous"])]
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["initial", "initial_depth", "previous", "motion"])]
     pub session: Option<PathBuf>,
     /// With --session: whether the last move moved the part (`true` or
     /// `false`, as the robot saw it); a move that moved nothing is not tried
@@ -440,6 +446,7 @@ pub(crate) struct Inputs {
     pub initial: Option<ndarray::Array3<f32>>,
     pub grasp: Option<(usize, usize)>,
     pub previous: Option<Vector3<f32>>,
+    pub motion: Option<Vector3<f32>>,
 }
 
 impl Inputs {
@@ -494,6 +501,23 @@ impl Inputs {
     }
 }
 
+/// An x,y,z flag's vector: three finite numbers, and not zero where `nonzero`.
+fn vector_arg(flag: &str, values: &[f32], nonzero: bool) -> Result<Option<Vector3<f32>>> {
+    match values {
+        [] => Ok(None),
+        &[x, y, z]
+            if [x, y, z].iter().all(|v| v.is_finite())
+                && (!nonzero || x * x + y * y + z * z > 1e-12) =>
+        {
+            Ok(Some(Vector3::new(x, y, z)))
+        }
+        v => Err(usage(format!(
+            "{flag} takes x,y,z, three finite numbers{}, got {v:?}",
+            if nonzero { " (not all zero)" } else { "" }
+        ))),
+    }
+}
+
 pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
     let camera = Camera::from_args(a)?;
     let grasp = match a.grasp.as_slice() {
@@ -518,17 +542,8 @@ pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
     if let Some(s) = a.sampler.sampler() {
         policy = policy.with_sampler(s);
     }
-    let previous = match a.previous.as_slice() {
-        [] => None,
-        [x, y, z] if [x, y, z].iter().all(|v| v.is_finite()) && (x * x + y * y + z * z) > 1e-12 => {
-            Some(nalgebra::Vector3::new(*x, *y, *z).normalize())
-        }
-        v => {
-            return Err(usage(format!(
-                "--previous takes x,y,z, a finite non-zero direction, got {v:?}"
-            )));
-        }
-    };
+    let previous = vector_arg("--previous", &a.previous, true)?.map(|v| v.normalize());
+    let motion = vector_arg("--motion", &a.motion, false)?;
     let (mh, mw) = policy.resolution();
     let full = load_frame(&a.rgb, &a.depth, a, &camera)?;
     if let Some((h, w)) = camera.size
@@ -588,6 +603,7 @@ pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
         initial,
         grasp,
         previous,
+        motion,
     })
 }
 
@@ -606,6 +622,7 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         pixel_small,
         &[],
         inputs.previous,
+        inputs.motion,
         &mut rng,
     )?;
     outln!("{out}");
@@ -621,6 +638,7 @@ pub(crate) fn decide(
     pixel_small: (usize, usize),
     banned: &[Vector3<f32>],
     previous: Option<Vector3<f32>>,
+    motion: Option<Vector3<f32>>,
     rng: &mut rand_chacha::ChaCha8Rng,
 ) -> Result<serde_json::Value> {
     let mode = inputs.mode();
@@ -635,6 +653,7 @@ pub(crate) fn decide(
         previous,
         mode,
         joint: joint.as_ref().map(|j| &j.estimate),
+        motion,
     };
     let model = &inputs.model;
     let Some(r) = inputs

@@ -34,6 +34,11 @@ struct State {
     previous: Option<[f32; 3]>,
     /// The move the last call returned, which --moved reports on.
     last: Option<[f32; 3]>,
+    /// Where the gripper was at the last call (world frame): the grasp's
+    /// point at the first, then `--gripper` or the point at `--grasp`.
+    /// Sessions written before it read as unknown.
+    #[serde(default)]
+    gripper: Option<[f32; 3]>,
 }
 
 fn state_error(dir: &Path, what: impl std::fmt::Display) -> anyhow::Error {
@@ -103,7 +108,9 @@ fn start(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
         }
         let reference = inputs.reference.as_ref().unwrap_or(&inputs.obs);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
-        let out = decide(inputs, reference, pixel, &[], None, &mut rng)?;
+        let out = decide(inputs, reference, pixel, &[], None, None, &mut rng)?;
+        let (r, c) = inputs.to_full(pixel);
+        let gripper = inputs.full.view().point_in_world(r, c);
         let state = State {
             format: FORMAT.into(),
             version: 1,
@@ -116,6 +123,7 @@ fn start(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
             banned: Vec::new(),
             previous: None,
             last: direction_of(&out),
+            gripper: gripper.map(|g| [g.x, g.y, g.z]),
         };
         save(dir, &state)?;
         print(out, dir, &state)
@@ -203,6 +211,19 @@ fn next(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
     if let (Some(last), Some(moved)) = (state.last, a.moved) {
         memory.record(Vector3::from(last), moved);
     }
+    // Where the gripper is now: as --gripper says, or the surface it holds
+    // at --grasp; the memory takes how it went since the last call.
+    let gripper = match (inputs.grasp, a.gripper.as_slice()) {
+        (None, &[x, y, z]) => Some(Vector3::new(x, y, z)),
+        (Some((r, c)), _) => inputs.full.view().point_in_world(r, c),
+        _ => None,
+    };
+    if let Some(g) = state.gripper {
+        memory.gripper_at(Vector3::from(g));
+    }
+    if let Some(g) = gripper {
+        memory.gripper_at(g);
+    }
     let stored;
     let reference = match (state.mode, state.reference_shape) {
         (Mode::Explore, Some(shape)) => {
@@ -234,12 +255,14 @@ fn next(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
         pixel,
         memory.banned(),
         memory.previous(),
+        memory.motion(),
         &mut rng,
     )?;
     state.steps += 1;
     state.banned = memory.banned().iter().map(|d| [d.x, d.y, d.z]).collect();
     state.previous = memory.previous().map(|d| [d.x, d.y, d.z]);
     state.last = direction_of(&out);
+    state.gripper = gripper.map(|g| [g.x, g.y, g.z]);
     save(dir, &state)?;
     print(out, dir, &state)
 }

@@ -163,7 +163,9 @@ pub const PHYSICS: &[&str] = &["reference", "ideal"];
 pub const PROTOCOLS: &[&str] = &["paper", "strict"];
 pub const TASKS: &[&str] = &["exploration|explore", "goal"];
 pub const RENDERERS: &[&str] = &["auto", "wgpu|gpu", "cpu"];
-pub const DIRECTION_FILTERS: &[&str] = &["none", "normal90", "prev90", "joint45", "goal45"];
+pub const DIRECTION_FILTERS: &[&str] = &[
+    "none", "normal90", "prev90", "joint45", "goal45", "onward45",
+];
 
 /// Which object and scene: a generated instance of a category, or a URDF file.
 #[derive(clap::Args, Clone)]

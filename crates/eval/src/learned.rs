@@ -59,7 +59,8 @@ pub struct LearnedPolicy {
     rng: ChaCha8Rng,
     memory: EpisodeMemory,
     reference: Option<Array3<f32>>,
-    /// The grasped part's joint read at the grasp, for the joint45 filter.
+    /// The grasped part's joint read at the grasp, for the joint45 and
+    /// onward45 filters.
     joint: Option<umpnet_policy::axis::JointEstimate>,
 }
 
@@ -122,7 +123,10 @@ impl Policy for LearnedPolicy {
         let goal = (env.scene().task == Task::Goal).then_some(reference.view());
         let choice = self.policy.position(current.view(), goal)?;
         self.reference = Some(reference);
-        if self.policy.direction_filter == DirectionFilter::Joint45 {
+        if matches!(
+            self.policy.direction_filter,
+            DirectionFilter::Joint45 | DirectionFilter::Onward45
+        ) {
             self.joint = self
                 .policy
                 .frame_joint(current.view(), choice.pixel)?
@@ -140,6 +144,9 @@ impl Policy for LearnedPolicy {
         if let Some(last) = history.last() {
             self.memory
                 .record(Vector3::from(last.direction), last.labels.moved);
+        }
+        if let Some(g) = obs.gripper_in_world {
+            self.memory.gripper_at(Vector3::new(g.x, g.y, g.z));
         }
         let current = observation_tensor(obs.frame)?;
         let reference = match &self.reference {
@@ -163,6 +170,7 @@ impl Policy for LearnedPolicy {
             previous: self.memory.previous(),
             mode,
             joint: self.joint.as_ref(),
+            motion: self.memory.motion(),
         };
         let mut out = self.policy.directions(
             std::slice::from_ref(&input),

@@ -379,6 +379,15 @@ impl TrainEnv {
             .unwrap_or_default()
     }
 
+    /// Where the gripper is (world frame), if it holds something: what a
+    /// robot knows of its own pose.
+    pub fn gripper_in_world(&self) -> Option<[f32; 3]> {
+        self.env
+            .as_ref()
+            .and_then(|e| e.articulation().gripper_position())
+            .map(|g| g.to_array())
+    }
+
     /// The joint the gripper moves, if it holds something.
     pub fn grasped_joint(&self) -> Option<usize> {
         self.env.as_ref().and_then(|e| e.grasped_joint())

@@ -43,6 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         previous: None,
         mode: Mode::Explore,
         joint: None,
+        motion: None,
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let decision = policy

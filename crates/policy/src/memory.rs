@@ -1,7 +1,9 @@
 //! What a learned policy carries from one move to the next within an
 //! episode: the moves that moved nothing (not tried again until a move
-//! does) and the previous move (for the `prev90` filter). One rule for the
-//! benchmark's policy and the Python `Policy.act`.
+//! does), the previous move (for the `prev90` filter) and how far the
+//! gripper itself went over it (for `goal45` and `onward45`). One rule for
+//! the benchmark's policy, `umpnet infer --session` and the Python
+//! `Policy.act`.
 use nalgebra::Vector3;
 
 /// The memory of one episode; `clear` at its start.
@@ -9,6 +11,10 @@ use nalgebra::Vector3;
 pub struct EpisodeMemory {
     banned: Vec<Vector3<f32>>,
     previous: Option<Vector3<f32>>,
+    /// Where the gripper was at the last decision (world frame).
+    gripper: Option<Vector3<f32>>,
+    /// Where it is now less where it was then.
+    motion: Option<Vector3<f32>>,
 }
 
 impl EpisodeMemory {
@@ -16,6 +22,8 @@ impl EpisodeMemory {
     pub fn clear(&mut self) {
         self.banned.clear();
         self.previous = None;
+        self.gripper = None;
+        self.motion = None;
     }
 
     /// After a move along `direction`: one that moved the part lifts every
@@ -32,7 +40,36 @@ impl EpisodeMemory {
     /// A memory as saved elsewhere (`banned` and `previous` as they were):
     /// a robot loop's session between calls.
     pub fn from_parts(banned: Vec<Vector3<f32>>, previous: Option<Vector3<f32>>) -> Self {
-        Self { banned, previous }
+        Self {
+            banned,
+            previous,
+            gripper: None,
+            motion: None,
+        }
+    }
+
+    /// Where the gripper is (world frame, from its own pose) as the next move
+    /// is chosen: from the second call on, [`Self::motion`] is how far it
+    /// went since the last. A point that is not finite forgets the motion.
+    pub fn gripper_at(&mut self, point: Vector3<f32>) {
+        if !point.iter().all(|v| v.is_finite()) {
+            self.gripper = None;
+            self.motion = None;
+            return;
+        }
+        self.motion = self.gripper.map(|before| point - before);
+        self.gripper = Some(point);
+    }
+
+    /// Where the gripper was at the last decision ([`Self::gripper_at`]).
+    pub fn gripper(&self) -> Option<Vector3<f32>> {
+        self.gripper
+    }
+
+    /// How the gripper went between the last two [`Self::gripper_at`] calls
+    /// (world frame, metres); None before the second.
+    pub fn motion(&self) -> Option<Vector3<f32>> {
+        self.motion
     }
 
     /// The directions not to choose again.
@@ -65,5 +102,23 @@ mod tests {
         m.record(y, false);
         m.clear();
         assert!(m.banned().is_empty() && m.previous().is_none());
+    }
+
+    #[test]
+    fn the_motion_is_where_the_gripper_went_between_two_decisions() {
+        let mut m = EpisodeMemory::default();
+        m.gripper_at(Vector3::new(0.1, 0.2, 0.3));
+        assert_eq!(m.motion(), None);
+        m.gripper_at(Vector3::new(0.2, 0.2, 0.1));
+        let went = m.motion().expect("a motion after two positions");
+        assert!(
+            (went - Vector3::new(0.1, 0.0, -0.2)).norm() < 1e-6,
+            "{went}"
+        );
+        m.gripper_at(Vector3::new(f32::NAN, 0.0, 0.0));
+        assert_eq!((m.motion(), m.gripper()), (None, None));
+        m.gripper_at(Vector3::new(0.2, 0.2, 0.1));
+        m.clear();
+        assert_eq!((m.motion(), m.gripper()), (None, None));
     }
 }

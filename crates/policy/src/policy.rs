@@ -36,6 +36,25 @@ pub struct DecisionInput<'a> {
     /// episode's first frame ([`UmpnetPolicy::frame_joint`]), which the
     /// `joint45` filter reads; None without one.
     pub joint: Option<&'a crate::axis::JointEstimate>,
+    /// How the gripper itself went over the last move (world frame,
+    /// metres), from its own pose ([`crate::memory::EpisodeMemory::motion`]),
+    /// which `goal45` and `onward45` read; None before the second decision
+    /// or where the caller does not know its gripper's pose.
+    pub motion: Option<Vector3<f32>>,
+}
+
+/// A gripper motion over one move shorter than this says nothing about
+/// which way the part gives (a 0.18 m move that the part stopped).
+pub const MOTION_MIN_M: f32 = 0.02;
+
+impl DecisionInput<'_> {
+    /// The direction the gripper went over the last move, where it went
+    /// more than [`MOTION_MIN_M`].
+    fn went(&self) -> Option<Vector3<f32>> {
+        self.motion
+            .filter(|m| m.norm() > MOTION_MIN_M)
+            .and_then(|m| m.try_normalize(1e-6))
+    }
 }
 
 // The filter is one of model.json's closed sets; it is named here too,
@@ -203,6 +222,15 @@ impl UmpnetPolicy {
                     .into(),
             ));
         }
+        if self.direction_filter == DirectionFilter::Onward45
+            && inputs.iter().any(|i| i.mode == Mode::Goal)
+        {
+            return Err(PolicyError::Input(
+                "the onward45 direction filter serves exploration only: toward a goal, onward may \
+                 be past it (goal45 reads the way there)"
+                    .into(),
+            ));
+        }
         if self.package.branches.goal_only() && inputs.iter().any(|i| i.mode != Mode::Goal) {
             return Err(PolicyError::Input(format!(
                 "{}: the Inverse model needs a goal to invert toward; it serves only the goal task",
@@ -337,11 +365,11 @@ impl UmpnetPolicy {
                         inp.observation[[r, c, 8]],
                     )),
                     DirectionFilter::Prev90 => inp.previous.map_or(Keep::All, Keep::HalfSpace),
-                    DirectionFilter::Joint45 => inp
-                        .joint
-                        .and_then(|j| j.motion_at(gripper))
-                        .map_or(Keep::All, Keep::Line),
+                    DirectionFilter::Joint45 => joint_line(inp, gripper),
                     DirectionFilter::Goal45 => goal_way(inp, gripper),
+                    DirectionFilter::Onward45 => inp
+                        .went()
+                        .map_or_else(|| joint_line(inp, gripper), |way| Keep::Way { way, aot: 1 }),
                 }
             })
             .collect()
@@ -430,18 +458,30 @@ enum Keep {
     },
 }
 
+/// The `joint45` filter's rule: along the line the JointNet's joint moves
+/// the gripper's point, either way; without a joint, the heads choose.
+fn joint_line(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
+    inp.joint
+        .and_then(|j| j.motion_at(gripper))
+        .map_or(Keep::All, Keep::Line)
+}
+
 /// The `goal45` filter's rule: toward where the goal frame shows the part
-/// that the current frame does not ([`crate::goal_shift::change`]). Where
-/// the goal frame does not show the part's new place, onward along the last
-/// move if it moved the part, else deeper along the goal camera's rays
-/// through the part (where hidden places lie); with nothing changed, the
-/// heads choose.
+/// that the current frame does not ([`crate::goal_shift::change`]), along
+/// the gripper's own last motion where that agrees (the frames' shift is a
+/// hinge's chord; the gripper's motion follows its arc). Where the goal
+/// frame does not show the part's new place, onward along the last move if
+/// it moved the part, else deeper along the goal camera's rays through the
+/// part (where hidden places lie); with nothing changed, the heads choose.
 fn goal_way(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
     // The change's unit shift, and whether it reads a hidden goal.
     let change = crate::goal_shift::change(&inp.observation, &inp.reference, gripper)
         .and_then(|c| Some((c.shift.try_normalize(1e-6)?, c.hidden)));
-    let seen = change.filter(|&(_, hidden)| !hidden).map(|(way, _)| way);
-    let moved = inp.previous.filter(|p| !inp.banned.contains(p));
+    let went = inp.went();
+    let seen = change
+        .filter(|&(_, hidden)| !hidden)
+        .map(|(way, _)| went.filter(|g| g.dot(&way) > 0.0).unwrap_or(way));
+    let moved = went.or(inp.previous.filter(|p| !inp.banned.contains(p)));
     let hidden = change.filter(|&(_, hidden)| hidden).map(|(way, _)| way);
     seen.or(moved)
         .or(hidden)

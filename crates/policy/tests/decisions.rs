@@ -181,6 +181,7 @@ fn decide_at(
             previous: None,
             mode,
             joint: None,
+            motion: None,
         })
         .collect();
     let mut rngs: Vec<ChaCha8Rng> = (0..obs.len())
@@ -325,6 +326,7 @@ fn the_inverse_baseline_acts_on_its_regressed_direction_in_the_goal_task_only() 
         previous: None,
         mode: Mode::Explore,
         joint: None,
+        motion: None,
     };
     let err = policy.directions(&[input], &mut rngs).err().unwrap();
     assert!(
@@ -346,6 +348,7 @@ fn explore<'a>(
         previous: None,
         mode: Mode::Explore,
         joint: None,
+        motion: None,
     }
 }
 
@@ -473,7 +476,7 @@ fn direction_filters_are_named_as_in_model_json() {
     let err = "prev45".parse::<DirectionFilter>().unwrap_err();
     assert!(
         err.to_string()
-            .contains("none, normal90, prev90, joint45 or goal45"),
+            .contains("none, normal90, prev90, joint45, goal45 or onward45"),
         "{err}"
     );
 }
@@ -623,4 +626,100 @@ fn the_goal45_filter_moves_toward_where_the_goal_frame_shows_the_part() {
         .err()
         .unwrap();
     assert!(err.to_string().contains("goal45"), "{err}");
+}
+
+#[test]
+fn the_goal45_filter_follows_the_grippers_own_motion_where_it_agrees_with_the_frames() {
+    use umpnet_policy::policy::DirectionFilter;
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let policy = policy.with_direction_filter(DirectionFilter::Goal45);
+    let (h, w) = policy.resolution();
+    let pixel = (h / 2, w / 2);
+    // The frames' shift is +x; the gripper's last motion says which way
+    // along it the part gives, when it went far enough to say.
+    let (now, goal) = (panel(&policy, 0.0, 1.2), panel(&policy, 0.25, 1.2));
+    let kept = |motion: Vector3<f32>| {
+        let input = DecisionInput {
+            mode: Mode::Goal,
+            motion: Some(motion),
+            ..explore(&now, &goal, pixel)
+        };
+        let r = policy
+            .directions(&[input], &mut [ChaCha8Rng::seed_from_u64(5)])
+            .unwrap()
+            .remove(0);
+        r.candidates
+            .iter()
+            .zip(&r.scores)
+            .map(|(d, s)| (*d, s.aot == -1 && s.distance >= 0.0))
+            .collect::<Vec<_>>()
+    };
+    let cone = std::f32::consts::FRAC_1_SQRT_2;
+    let arc = Vector3::new(1.0, 0.0, -1.0).normalize();
+    for (motion, way) in [
+        // Agrees with the shift: its own direction is the way.
+        (arc * 0.1, arc),
+        // Went against the frames (past the goal): the frames' shift.
+        (
+            Vector3::new(-1.0, 0.0, -1.0).normalize() * 0.1,
+            Vector3::x(),
+        ),
+        // Within 2 cm, it says nothing: the frames' shift.
+        (arc * 0.015, Vector3::x()),
+    ] {
+        for (d, k) in kept(motion) {
+            assert_eq!(k, d.dot(&way) >= cone, "motion {motion:?}: {d:?}");
+        }
+    }
+}
+
+#[test]
+fn the_onward45_filter_explores_onward_along_where_the_gripper_went() {
+    use umpnet_policy::policy::DirectionFilter;
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let policy = policy.with_direction_filter(DirectionFilter::Onward45);
+    let obs = observation(&policy, 13);
+    let (h, w) = policy.resolution();
+    let pixel = (h / 2, w / 2);
+    let went = Vector3::new(0.0, 0.6, -0.8);
+    let decide = |motion: Option<Vector3<f32>>| {
+        let input = DecisionInput {
+            motion,
+            ..explore(&obs, &obs, pixel)
+        };
+        policy
+            .directions(&[input], &mut [ChaCha8Rng::seed_from_u64(9)])
+            .unwrap()
+            .remove(0)
+    };
+    let cone = std::f32::consts::FRAC_1_SQRT_2;
+    let r = decide(Some(went * 0.12));
+    for (d, s) in r.candidates.iter().zip(&r.scores) {
+        if d.dot(&went) >= cone {
+            assert_eq!(s.aot, 1, "onward is forward: {d:?} {s:?}");
+        } else {
+            assert_eq!((s.distance, s.aot), (-1.0, 0), "{d:?}");
+        }
+    }
+    assert!(r.direction.unwrap().dot(&went) >= cone);
+    // Before a motion, or after one the part stopped within 2 cm, a package
+    // without a JointNet leaves the choice to its heads.
+    for motion in [None, Some(went * 0.01)] {
+        let r = decide(motion);
+        assert!(r.scores.iter().all(|s| s.distance >= 0.0), "{motion:?}");
+    }
+    // Toward a goal, onward may be past it: refused by name.
+    let input = DecisionInput {
+        mode: Mode::Goal,
+        ..explore(&obs, &obs, pixel)
+    };
+    let err = policy
+        .directions(&[input], &mut [ChaCha8Rng::seed_from_u64(9)])
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("onward45"), "{err}");
 }

@@ -82,8 +82,10 @@ fn step_info<'py>(
     py: Python<'py>,
     l: &StepLabels,
     joints: Vec<f32>,
+    gripper: Option<[f32; 3]>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
+    d.set_item("gripper_in_world", gripper.map(|g| g.to_vec()))?;
     d.set_item("joint_before", l.joint_before)?;
     d.set_item("joint_after", l.joint_after)?;
     d.set_item("reached_limit", l.reached_limit)?;
@@ -95,8 +97,13 @@ fn step_info<'py>(
     Ok(d)
 }
 
-fn position_info<'py>(py: Python<'py>, i: &PositionInfo) -> PyResult<Bound<'py, PyDict>> {
+fn position_info<'py>(
+    py: Python<'py>,
+    i: &PositionInfo,
+    gripper: Option<[f32; 3]>,
+) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
+    d.set_item("gripper_in_world", gripper.map(|g| g.to_vec()))?;
     d.set_item("valid", i.valid)?;
     d.set_item("link", i.link)?;
     d.set_item("joint", i.joint)?;
@@ -250,7 +257,8 @@ impl Env {
         let obs = self
             .buffers
             .fill(py, std::slice::from_mut(&mut self.inner), false, self.copy)?;
-        Ok((obs, position_info(py, &info)?))
+        let gripper = self.inner.gripper_in_world();
+        Ok((obs, position_info(py, &info, gripper)?))
     }
 
     /// Moves the gripper 0.18 m along `direction`. Returns (observation, labels, info).
@@ -265,10 +273,11 @@ impl Env {
             .buffers
             .fill(py, std::slice::from_mut(&mut self.inner), false, self.copy)?;
         let joints = self.inner.joint_positions();
+        let gripper = self.inner.gripper_in_world();
         Ok((
             obs,
             labels_dict(py, &labels)?,
-            step_info(py, &labels, joints)?,
+            step_info(py, &labels, joints, gripper)?,
         ))
     }
 

@@ -21,6 +21,7 @@ use umpnet_policy::frame_joint::{
     FrameJoint, JOINT_CHANNELS, joint_from_fields as joint_from_fields_rs,
 };
 use umpnet_policy::memory::EpisodeMemory;
+use umpnet_policy::policy::DirectionFilter;
 use umpnet_policy::{DecisionInput, ModelPackage, UmpnetPolicy};
 
 /// The ONNX Runtime library of the `onnxruntime` package installed in the
@@ -38,6 +39,9 @@ pub(crate) struct Policy {
     memory: EpisodeMemory,
     /// The last direction `decide` returned: the move `moved` reports on.
     last: Option<nalgebra::Vector3<f32>>,
+    /// The grasped part's joint, read by `position` where the filter uses it
+    /// (`joint45`, `onward45`), as `umpnet eval` reads it at the grasp.
+    joint: Option<JointEstimate>,
 }
 
 #[pymethods]
@@ -75,6 +79,7 @@ impl Policy {
             rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed),
             memory: EpisodeMemory::default(),
             last: None,
+            joint: None,
         })
     }
 
@@ -84,10 +89,13 @@ impl Policy {
         self.inner.resolution()
     }
 
-    /// The grasp pixel (row, col) for an H x W x 10 observation (masked by a goal observation if given).
+    /// The grasp pixel (row, col) for an H x W x 10 observation (masked by a
+    /// goal observation if given). Under the `joint45` and `onward45`
+    /// filters it also reads the grasped part's joint there, which `decide`
+    /// uses until `reset`.
     #[pyo3(signature = (image, goal=None))]
     fn position(
-        &self,
+        &mut self,
         image: Arr3<'_, f32>,
         goal: Option<Arr3<'_, f32>>,
     ) -> PyResult<(usize, usize)> {
@@ -98,6 +106,16 @@ impl Policy {
             .inner
             .position(img.view(), g.as_ref().map(|g| g.view()))
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        if matches!(
+            self.inner.direction_filter,
+            DirectionFilter::Joint45 | DirectionFilter::Onward45
+        ) {
+            self.joint = self
+                .inner
+                .frame_joint(img.view(), c.pixel)
+                .map_err(policy_err)?
+                .map(|j| j.estimate);
+        }
         Ok(c.pixel)
     }
 
@@ -166,6 +184,7 @@ impl Policy {
                 previous: None,
                 mode,
                 joint: None,
+                motion: None,
             })
             .collect();
         let mut rngs: Vec<rand_chacha::ChaCha8Rng> = (0..b)
@@ -192,13 +211,18 @@ impl Policy {
         }
         self.memory.clear();
         self.last = None;
+        self.joint = None;
     }
 
     /// The next direction for one H x W x 10 observation, with the episode's
     /// memory, as `umpnet eval`'s learned policy decides: `moved` says whether
     /// the move this last returned moved the part (a move that did not is
-    /// not tried again until one does). A dict as `direction_batch` gives.
-    #[pyo3(signature = (image, reference, pixel, mode="explore", moved=None))]
+    /// not tried again until one does); `gripper` is where the gripper is now
+    /// (world x, y, z, from its own pose), from which the `goal45` and
+    /// `onward45` filters read how it went over the last move. A dict as
+    /// `direction_batch` gives.
+    #[pyo3(signature = (image, reference, pixel, mode="explore", moved=None, gripper=None))]
+    #[expect(clippy::too_many_arguments, reason = "Python keyword arguments")]
     fn decide<'py>(
         &mut self,
         py: Python<'py>,
@@ -207,8 +231,20 @@ impl Policy {
         pixel: (i64, i64),
         mode: &str,
         moved: Option<bool>,
+        gripper: Option<Vec<f32>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let mode = parse_mode(mode)?;
+        let gripper = match gripper.as_deref() {
+            None => None,
+            Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => {
+                Some(nalgebra::Vector3::new(x, y, z))
+            }
+            Some(g) => {
+                return Err(PyValueError::new_err(format!(
+                    "gripper = {g:?}: expected the gripper's world position, three finite numbers (x, y, z)"
+                )));
+            }
+        };
         let (image, reference) = (to_array3(&image.0)?, to_array3(&reference.0)?);
         if image.shape() != reference.shape() {
             return Err(PyValueError::new_err(format!(
@@ -222,6 +258,9 @@ impl Policy {
         if let (Some(last), Some(moved)) = (self.last, moved) {
             self.memory.record(last, moved);
         }
+        if let Some(g) = gripper {
+            self.memory.gripper_at(g);
+        }
         let input = DecisionInput {
             observation: image.view(),
             reference: reference.view(),
@@ -229,7 +268,8 @@ impl Policy {
             banned: self.memory.banned(),
             previous: self.memory.previous(),
             mode,
-            joint: None,
+            joint: self.joint.as_ref(),
+            motion: self.memory.motion(),
         };
         let (inner, rng) = (&self.inner, &mut self.rng);
         let mut out = py

@@ -216,6 +216,30 @@ def test_the_goal45_filter_steers_python_decisions_toward_the_goal_frame(fixture
         umpnet.Policy(str(steer), direction_filter="goal90")
 
 
+def test_decide_reads_the_grippers_motion_between_calls_for_onward45(fixture_package):
+    """decide(gripper=...) gives the runtime how the gripper went since the
+    last call: onward45 then keeps to that way and calls it forward; the
+    first call, and a gripper that hardly moved, leave the heads their
+    choice; a gripper that is not three finite numbers is a ValueError."""
+    pol = umpnet.Policy(str(Path(fixture_package) / "steer"), direction_filter="onward45")
+    h, w = pol.resolution
+    image = panel_image(h, w, 0.0, 1.2)
+    pixel = (h // 2, w // 2)
+    first = pol.decide(image, image, pixel, gripper=[0.0, 0.0, 1.2])
+    assert min(first["distance"]) >= 0.0  # nothing ruled out before a motion
+    went = np.array([0.0, 0.6, -0.8])
+    out = pol.decide(image, image, pixel, moved=True, gripper=list(np.array([0.0, 0.0, 1.2]) + 0.1 * went))
+    assert float(np.dot(out["direction"], went)) >= np.sqrt(0.5) - 1e-6, out["direction"]
+    kept = np.asarray(out["candidates"]) @ went >= np.sqrt(0.5)
+    assert set(np.asarray(out["aot"])[kept]) == {1}
+    assert (np.asarray(out["distance"])[~kept] == -1.0).all()
+    still = pol.decide(image, image, pixel, moved=False, gripper=list(np.array([0.0, 0.0, 1.2]) + 0.11 * went))
+    assert min(still["distance"]) >= 0.0
+    for bad in ([0.0, 1.0], [0.0, float("nan"), 1.0]):
+        with pytest.raises(ValueError, match=r"gripper = .*three finite numbers"):
+            pol.decide(image, image, pixel, gripper=bad)
+
+
 def test_torch_optimizer_after_rendering_in_the_same_process():
     """umpnet_train loads torch's lazy native parts before any environment renders
     (Mesa's LLVM then torch's segfaulted); check it in a fresh process."""

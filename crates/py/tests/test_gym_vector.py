@@ -270,23 +270,29 @@ def test_documented_python_runs_as_written(doc, tmp_path, monkeypatch):
         exec(compile(block, f"{doc} (python block)", "exec"), {})  # noqa: S102  (the docs, run as written)
 
 
-@pytest.mark.parametrize("task", ["goal", "exploration"])
-def test_the_shipped_policy_through_gym_makes_the_moves_umpnet_eval_made(task, tmp_path):
+@pytest.mark.parametrize(
+    ("task", "direction_filter"),
+    [("goal", None), ("exploration", None), ("goal", "goal45"), ("exploration", "onward45")],
+)
+def test_the_shipped_policy_through_gym_makes_the_moves_umpnet_eval_made(task, direction_filter, tmp_path):
     """On the benchmark's scenes and seeds, the shipped policy driven through
     gymnasium by Policy.act (with each step's info) makes exactly the moves
-    `umpnet eval` recorded and ends its episodes the same way."""
+    `umpnet eval` recorded and ends its episodes the same way; under the
+    filters that read the gripper's own motion (from ``info``) and the
+    grasped part's joint (read at the grasp) too."""
     root = Path(__file__).resolve().parents[3]
     binary = os.environ.get("UMPNET_BIN", str(root / "target/release/umpnet"))
     out = tmp_path / "eval"
+    filters = ["--direction-filter", direction_filter] if direction_filter else []
     subprocess.run(
         [binary, "eval", "--task", task, "--categories", "Door,Microwave,Switch", "--episodes-per-category", "3",
-         "--policies", "umpnet", "--model", str(root / "models/umpnet-small"), "--out", str(out)],
+         "--policies", "umpnet", "--model", str(root / "models/umpnet-small"), "--out", str(out), *filters],
         check=True, capture_output=True,
     )  # fmt: skip
     episodes = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
     episodes = [e for e in episodes if e["policy"] == "umpnet"]
     assert len(episodes) == 9
-    policy = umpnet.Policy.default()
+    policy = umpnet.Policy.default(direction_filter=direction_filter)
     env = gym.make(f"umpnet/{'Goal' if task == 'goal' else 'Explore'}-v0", resolution=policy.resolution)
     compared = 0
     for e in episodes:

@@ -74,9 +74,11 @@ pub struct EvalArgs {
     #[arg(long, value_delimiter = ',', default_value = "oracle,random")]
     pub policies: Vec<String>,
     /// Every learned policy's direction filter instead of its package's:
-    /// none, normal90 (within 90 degrees of the surface normal) or prev90
+    /// none, normal90 (within 90 degrees of the surface normal), prev90
     /// (within 90 degrees of the previous action, the paper's +HP;
-    /// exploration only).
+    /// exploration only), joint45 (along the JointNet's joint), goal45
+    /// (toward where the goal frame shows the part; goal only) or onward45
+    /// (onward where the gripper went; exploration only).
     #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
     pub direction_filter: Option<DirectionFilter>,
     #[command(flatten)]

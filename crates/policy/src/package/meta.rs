@@ -103,18 +103,26 @@ pub enum DirectionFilter {
     /// where the current frame shows the part to where the goal frame shows
     /// it, read off the two frames' geometry (beyond the paper; any
     /// package). It takes the Arrow-of-Time head's forward-or-back call; the
-    /// Dist head ranks the directions kept.
+    /// Dist head ranks the directions kept. Where the gripper's own last
+    /// motion agrees with that way, its motion is the way: it follows a
+    /// hinge's arc where the frames give its chord.
     Goal45,
+    /// Exploration only: after a move that carried the gripper more than
+    /// 2 cm, only directions within 45 degrees of where it went, called
+    /// forward (beyond the paper; any package). Otherwise `joint45`'s rule
+    /// where the package's JointNet read the joint, else the heads.
+    Onward45,
 }
 
 impl DirectionFilter {
     /// Every filter, in the order the help lists them.
-    pub const ALL: [DirectionFilter; 5] = [
+    pub const ALL: [DirectionFilter; 6] = [
         Self::None,
         Self::Normal90,
         Self::Prev90,
         Self::Joint45,
         Self::Goal45,
+        Self::Onward45,
     ];
 
     /// The name in model.json's `direction_filter` and on the command line.
@@ -125,6 +133,7 @@ impl DirectionFilter {
             Self::Prev90 => "prev90",
             Self::Joint45 => "joint45",
             Self::Goal45 => "goal45",
+            Self::Onward45 => "onward45",
         }
     }
 }
@@ -137,7 +146,7 @@ impl std::str::FromStr for DirectionFilter {
             .find(|f| f.name() == s)
             .ok_or_else(|| {
                 PolicyError::Input(format!(
-                    "unknown direction filter `{s}`; expected none, normal90, prev90, joint45 or goal45"
+                    "unknown direction filter `{s}`; expected none, normal90, prev90, joint45, goal45 or onward45"
                 ))
             })
     }

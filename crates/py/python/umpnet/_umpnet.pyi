@@ -97,6 +97,7 @@ class Policy:
         pixel: tuple[int, int],
         mode: str = "explore",
         moved: bool | None = None,
+        gripper: Sequence[float] | None = None,
     ) -> dict[str, Any]: ...
 
 class Articulation:

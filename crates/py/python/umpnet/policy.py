@@ -50,7 +50,7 @@ class Policy(_Policy):
     ``ORT_DYLIB_PATH`` environment variable names another. The library is
     loaded once per process: the first Policy's choice holds.
     ``direction_filter`` replaces the package's (``none``, ``normal90``,
-    ``prev90``, ``joint45`` or ``goal45``), as ``--direction-filter`` does
+    ``prev90``, ``joint45``, ``goal45`` or ``onward45``), as ``--direction-filter`` does
     on the command line.
     """
 
@@ -84,7 +84,8 @@ class Policy(_Policy):
 
         Pass the last step's ``info`` and the policy decides as ``umpnet
         eval`` does: a move that moved nothing (``info["moved"]``) is not
-        tried again until one does. With ``reset(seed)`` at each episode's
+        tried again until one does, and the ``goal45`` and ``onward45``
+        filters read how the gripper went (``info["gripper_in_world"]``). With ``reset(seed)`` at each episode's
         start, and the benchmark's scene and seed, it makes the benchmark's
         moves (``umpnet.benchmark_seeds`` gives them). When the policy
         stops (no candidate it expects to help), ``self.stopped`` is True
@@ -100,8 +101,9 @@ class Policy(_Policy):
             return {"phase": 0, "pixel": np.array([row, col], np.int64), "direction": np.zeros(3, np.float32)}
         row, col = (int(v) for v in np.asarray(obs["gripper_pixel"]).reshape(2))
         moved = None if info is None or "moved" not in info else bool(info["moved"])
+        gripper = None if info is None else info.get("gripper_in_world")
         mode = "goal" if task == "goal" else "explore"
-        decision = self.decide(image, reference, (row, col), mode, moved)
+        decision = self.decide(image, reference, (row, col), mode, moved, gripper)
         self.stopped = decision["direction"] is None
         direction = [0.0, 0.0, 1.0] if self.stopped else decision["direction"]
         return {"phase": 1, "pixel": np.zeros(2, np.int64), "direction": np.asarray(direction, np.float32)}
