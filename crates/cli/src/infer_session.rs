@@ -178,12 +178,21 @@ fn load_state(dir: &Path, inputs: &Inputs) -> Result<State> {
     Ok(state)
 }
 
-/// Where the gripper holds the part now, at the model's size.
-fn gripper_pixel(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<(usize, usize)> {
+/// The gripper's pixel at the model's size, and its world point.
+type GripperNow = ((usize, usize), Option<Vector3<f32>>);
+
+/// Where the gripper holds the part now: `--gripper` projected, or
+/// `--grasp` with the surface the frame shows there (None where it shows
+/// none).
+fn gripper_now(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<GripperNow> {
     Ok(match (inputs.grasp, a.gripper.as_slice()) {
-        (Some(p), []) => inputs.to_model(p),
+        (Some((r, c)), []) => (
+            inputs.to_model((r, c)),
+            inputs.full.view().point_in_world(r, c),
+        ),
         (None, &[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => {
-            inputs.to_model(project(inputs, Vector3::new(x, y, z), dir)?)
+            let point = Vector3::new(x, y, z);
+            (inputs.to_model(project(inputs, point, dir)?), Some(point))
         }
         (None, []) => {
             return Err(state_error(
@@ -203,7 +212,7 @@ fn gripper_pixel(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<(usize, u
 /// The next step: the memory told whether the last move moved the part.
 fn next(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
     let mut state = load_state(dir, inputs)?;
-    let pixel = gripper_pixel(dir, a, inputs)?;
+    let (pixel, gripper) = gripper_now(dir, a, inputs)?;
     let mut memory = EpisodeMemory::from_parts(
         state.banned.iter().map(|d| Vector3::from(*d)).collect(),
         state.previous.map(Vector3::from),
@@ -211,13 +220,7 @@ fn next(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
     if let (Some(last), Some(moved)) = (state.last, a.moved) {
         memory.record(Vector3::from(last), moved);
     }
-    // Where the gripper is now: as --gripper says, or the surface it holds
-    // at --grasp; the memory takes how it went since the last call.
-    let gripper = match (inputs.grasp, a.gripper.as_slice()) {
-        (None, &[x, y, z]) => Some(Vector3::new(x, y, z)),
-        (Some((r, c)), _) => inputs.full.view().point_in_world(r, c),
-        _ => None,
-    };
+    // The memory takes how the gripper went since the last call.
     if let Some(g) = state.gripper {
         memory.gripper_at(Vector3::from(g));
     }
