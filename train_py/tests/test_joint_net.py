@@ -95,6 +95,21 @@ def test_a_short_run_learns_resumes_exports_and_the_runtime_reads_it(tmp_path, f
     assert sum(t["n"] for t in on_objects["by_true_type"].values()) == 2
 
 
+def test_worker_processes_make_the_same_frames_as_one():
+    cfg = dataclasses.replace(SMALL, frames=10)
+    alone = joint_net.make_dataset(cfg, workers=1, size=4)
+    shared = joint_net.make_dataset(cfg, workers=2, size=4)
+    assert all(np.array_equal(alone[k], shared[k]) for k in alone)
+    assert len({alone["image"][i].tobytes() for i in range(10)}) == 10, "every frame its own"
+
+
+def test_a_time_limit_stops_with_a_checkpoint_that_resumes(tmp_path):
+    joint_net.train(dataclasses.replace(SMALL, steps=50), tmp_path, resume=False, time_limit=1e-9)
+    assert torch.load(tmp_path / "joint.pt", weights_only=False)["step"] == 1
+    joint_net.train(dataclasses.replace(SMALL, steps=3), tmp_path, resume=True)
+    assert torch.load(tmp_path / "joint.pt", weights_only=False)["step"] == 3
+
+
 def test_color_jitter_changes_colours_alone_and_keeps_them_in_range():
     image = torch.rand(8, 6, 7, 10)
     before = image.clone()

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 import umpnet
 from umpnet_train import collect, train
 from umpnet_train.config import Config, config_from_checkpoint, make_config
@@ -117,6 +118,20 @@ def test_smoke_training_resume_export_and_rust_load(tmp_path):
     )
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout)["policy"] == "smoke"
+
+
+def test_a_time_limit_stops_with_a_checkpoint_and_the_export(tmp_path, capsys):
+    out, pkg = tmp_path / "run", tmp_path / "package"
+    args = ["--preset", "smoke", "--out", str(out), "--epochs", "40", "--time-limit", "1e-9", "--export", str(pkg)]
+    assert train.main(args) == 0
+    assert torch.load(out / "checkpoint.pt", weights_only=False)["epoch"] == 1
+    assert json.loads((pkg / "model.json").read_text())["provenance"]["epochs"] == 1
+    assert "stopped after epoch 1 of 40" in capsys.readouterr().out
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "2", "--resume"]) == 0
+    assert torch.load(out / "checkpoint.pt", weights_only=False)["epoch"] == 2
+    with pytest.raises(SystemExit):
+        train.main(["--preset", "smoke", "--out", str(out), "--time-limit", "0"])
+    assert "--time-limit 0.0: expected a positive number" in capsys.readouterr().err
 
 
 def test_resume_without_checkpoint_is_an_error(tmp_path, capsys):

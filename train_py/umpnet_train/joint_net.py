@@ -134,34 +134,72 @@ def frame(env: umpnet.Env, rng: np.random.Generator, max_moves: int) -> tuple[np
     return image, joint_labels(image, env.articulation_fields())
 
 
-def make_dataset(cfg: JointConfig) -> dict[str, np.ndarray]:
-    """`cfg.frames` frames, spread evenly over the training categories."""
+# Frames are made in chunks of this many, each from its own seeds, so that
+# the dataset is the same whatever the number of worker processes.
+CHUNK = 500
+
+
+def _empty(frames: int, h: int, w: int) -> dict[str, np.ndarray]:
+    return {
+        "image": np.zeros((frames, h, w, CHANNELS), np.float16),
+        "movable": np.zeros((frames, h, w), bool),
+        "kind": np.zeros((frames, h, w), np.int8),
+        "flow": np.zeros((frames, h, w, 3), np.float16),
+        "axis": np.zeros((frames, h, w, 3), np.float16),
+        "to_axis": np.zeros((frames, h, w, 3), np.float16),
+    }
+
+
+def make_chunk(cfg: JointConfig, chunk: int, size: int = CHUNK) -> dict[str, np.ndarray]:
+    """Frames [chunk * size, ...) of the dataset, from seeds of their own."""
     # Here, not at the top: the fixture exports a JointNet before the
     # bindings are built (make fixture), and that needs no frames.
     import umpnet
 
-    rng = np.random.default_rng(cfg.seed)
+    first = chunk * size
+    count = min(size, cfg.frames - first)
+    rng = np.random.default_rng([cfg.seed, chunk])
     names = [n for n, split, _ in umpnet.categories() if split == "train"]
     envs = {
         n: umpnet.Env(
-            n, seed=cfg.seed + i, task="exploration", split="train", copy=True, resolution=(cfg.height, cfg.width)
+            n,
+            seed=cfg.seed + 1000 * chunk + i,
+            task="exploration",
+            split="train",
+            copy=True,
+            resolution=(cfg.height, cfg.width),
         )
         for i, n in enumerate(names)
     }
-    h, w = cfg.height, cfg.width
-    data = {
-        "image": np.zeros((cfg.frames, h, w, CHANNELS), np.float16),
-        "movable": np.zeros((cfg.frames, h, w), bool),
-        "kind": np.zeros((cfg.frames, h, w), np.int8),
-        "flow": np.zeros((cfg.frames, h, w, 3), np.float16),
-        "axis": np.zeros((cfg.frames, h, w, 3), np.float16),
-        "to_axis": np.zeros((cfg.frames, h, w, 3), np.float16),
-    }
-    for i in range(cfg.frames):
-        image, labels = frame(envs[names[i % len(names)]], rng, cfg.max_oracle_moves)
+    data = _empty(count, cfg.height, cfg.width)
+    for i in range(count):
+        image, labels = frame(envs[names[(first + i) % len(names)]], rng, cfg.max_oracle_moves)
         data["image"][i] = image
         for k, v in labels.items():
             data[k][i] = v
+    return data
+
+
+def make_dataset(cfg: JointConfig, workers: int = 1, size: int = CHUNK) -> dict[str, np.ndarray]:
+    """`cfg.frames` frames, spread evenly over the training categories, made
+    by `workers` processes (the same frames for any number) in chunks of
+    `size`."""
+    chunks = range((cfg.frames + size - 1) // size)
+    data = _empty(cfg.frames, cfg.height, cfg.width)
+    if workers > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        # spawn, not fork: the parent may already hold threads (PyTorch's, CUDA's).
+        with ProcessPoolExecutor(min(workers, len(chunks)), mp_context=multiprocessing.get_context("spawn")) as pool:
+            parts = pool.map(make_chunk, [cfg] * len(chunks), chunks, [size] * len(chunks))
+            for chunk, part in zip(chunks, parts, strict=True):
+                for k, v in part.items():
+                    data[k][chunk * size : chunk * size + len(v)] = v
+        return data
+    for chunk in chunks:
+        for k, v in make_chunk(cfg, chunk, size).items():
+            data[k][chunk * size : chunk * size + len(v)] = v
     return data
 
 
@@ -198,17 +236,28 @@ def jitter_colors(image: torch.Tensor, rng: np.random.Generator) -> None:
     (and kept so)."""
     n = image.shape[0]
     rgb = image[..., 3:6]
-    grey = torch.from_numpy(rng.random(n) < 0.25)
+    grey = torch.from_numpy(rng.random(n) < 0.25).to(image.device)
     rgb[grey] = rgb[grey].mean(-1, keepdim=True).expand(-1, -1, -1, 3).clone()
-    gain = torch.from_numpy(rng.uniform(0.6, 1.4, (n, 1, 1, 3)).astype(np.float32))
-    offset = torch.from_numpy(rng.uniform(-0.2, 0.2, (n, 1, 1, 3)).astype(np.float32))
+    gain = torch.from_numpy(rng.uniform(0.6, 1.4, (n, 1, 1, 3)).astype(np.float32)).to(image.device)
+    offset = torch.from_numpy(rng.uniform(-0.2, 0.2, (n, 1, 1, 3)).astype(np.float32)).to(image.device)
     # A grey image stays grey: one gain and offset for its three channels.
     gain[grey] = gain[grey][..., :1].expand(-1, -1, -1, 3).clone()
     offset[grey] = offset[grey][..., :1].expand(-1, -1, -1, 3).clone()
     image[..., 3:6] = (rgb * gain + offset).clamp(0, 1)
 
 
-def train(cfg: JointConfig, out: Path, resume: bool) -> JointNet:
+def train(
+    cfg: JointConfig,
+    out: Path,
+    resume: bool,
+    device: str = "cpu",
+    workers: int = 1,
+    time_limit: float | None = None,
+) -> JointNet:
+    """Trains to `cfg.steps` (or until `time_limit` seconds have passed, with
+    a checkpoint that `resume` continues) on `device`; the frames come from
+    `workers` processes. Returns the model, on the CPU."""
+    t_start = time.perf_counter()
     torch.manual_seed(cfg.seed)
     model = JointNet(cfg)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
@@ -224,17 +273,23 @@ def train(cfg: JointConfig, out: Path, resume: bool) -> JointNet:
 
     commit = git_commit()  # at the start: the code may be edited while the run goes on
     t0 = time.perf_counter()
-    data = make_dataset(cfg)
+    # The frames stay half precision where they are kept (on the GPU when
+    # training there); a batch is made full precision as it is drawn.
+    data = {k: torch.from_numpy(v).to(device) for k, v in make_dataset(cfg, workers).items()}
     print(f"{cfg.frames} frames in {time.perf_counter() - t0:.0f} s", flush=True)
+    model.to(device)
+    # Adam's state follows its parameters (loaded on the CPU above).
+    for state in opt.state.values():
+        for k, v in state.items():
+            if torch.is_tensor(v) and k != "step":
+                state[k] = v.to(device)
     rng = np.random.default_rng(cfg.seed + step)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, cfg.steps, last_epoch=step - 1 if step else -1)
     model.train()
     t0 = time.perf_counter()
     while step < cfg.steps:
-        idx = np.sort(rng.choice(cfg.frames, cfg.batch, replace=False))
-        batch = {
-            k: torch.from_numpy(v[idx].astype(np.float32) if v.dtype == np.float16 else v[idx]) for k, v in data.items()
-        }
+        idx = torch.from_numpy(np.sort(rng.choice(cfg.frames, cfg.batch, replace=False))).to(device)
+        batch = {k: v[idx].float() if v.dtype == torch.float16 else v[idx] for k, v in data.items()}
         batch["kind"] = batch["kind"].long()
         if cfg.color_jitter:
             jitter_colors(batch["image"], rng)
@@ -254,9 +309,13 @@ def train(cfg: JointConfig, out: Path, resume: bool) -> JointNet:
                 + f" ({rate:.0f} frames/s)",
                 flush=True,
             )
-        if step % 250 == 0 or step == cfg.steps:
+        out_of_time = time_limit is not None and time.perf_counter() - t_start > time_limit
+        if step % 250 == 0 or step == cfg.steps or out_of_time:
             save(model, opt, cfg, step, checkpoint, commit)
-    return model
+        if out_of_time:
+            print(f"--time-limit {time_limit:g} s: stopped at step {step} of {cfg.steps}", flush=True)
+            break
+    return model.cpu()
 
 
 def save(model, opt, cfg: JointConfig, step: int, path: Path, commit: str | None) -> None:
@@ -334,21 +393,48 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=JointConfig.steps)
     p.add_argument("--frames", type=int, default=JointConfig.frames)
     p.add_argument("--seed", type=int, default=JointConfig.seed)
+    p.add_argument("--widths", default=",".join(map(str, JointConfig.widths)), help="U-Net widths per level")
+    p.add_argument("--batch", type=int, default=JointConfig.batch, help="frames per update")
+    p.add_argument("--lr", type=float, default=JointConfig.lr, help="peak learning rate (cosine decay)")
+    p.add_argument("--device", default="auto", help="auto (cuda when available), cpu or cuda")
+    p.add_argument("--workers", type=int, default=1, help="processes making the frames (the same frames for any)")
+    p.add_argument(
+        "--time-limit",
+        type=float,
+        metavar="SECONDS",
+        help="stop after the step that passes SECONDS, with a checkpoint --resume continues",
+    )
     p.add_argument("--resume", action="store_true", help="continue OUT/joint.pt")
     p.add_argument("--color-jitter", action="store_true", help="jitter each training image's colours")
     p.add_argument("--export", type=Path, metavar="PACKAGE", help="add OUT/joint.pt to this package, no training")
     a = p.parse_args(argv)
-    if a.steps <= 0 or a.frames < 16:
-        p.error("--steps must be positive and --frames at least 16 (one batch)")
+    try:
+        widths = tuple(int(w) for w in a.widths.split(","))
+    except ValueError:
+        widths = ()
+    if not widths or min(widths) <= 0:
+        p.error(f"--widths {a.widths}: expected positive integers, e.g. 16,32,64,128")
+    if a.steps <= 0 or a.batch <= 0 or a.frames < a.batch:
+        p.error("--steps and --batch must be positive and --frames at least one batch")
+    if not a.lr > 0 or a.workers < 1 or (a.time_limit is not None and not a.time_limit > 0):
+        p.error("--lr and --time-limit must be positive and --workers at least 1")
+    if a.device not in ("auto", "cpu", "cuda"):
+        p.error(f"--device {a.device}: expected auto, cpu or cuda")
+    device = "cuda" if a.device == "auto" and torch.cuda.is_available() else a.device.replace("auto", "cpu")
     try:
         if a.export:
             export(a.out / "joint.pt", a.export)
             return 0
-        train(
-            JointConfig(steps=a.steps, frames=a.frames, seed=a.seed, color_jitter=a.color_jitter),
-            a.out,
-            a.resume,
+        cfg = JointConfig(
+            steps=a.steps,
+            frames=a.frames,
+            seed=a.seed,
+            color_jitter=a.color_jitter,
+            widths=widths,
+            batch=a.batch,
+            lr=a.lr,
         )
+        train(cfg, a.out, a.resume, device, a.workers, a.time_limit)
     except (OSError, ValueError, KeyError) as e:
         p.error(str(e))
     return 0

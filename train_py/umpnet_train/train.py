@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import pickle
 import shlex
 import subprocess
@@ -238,13 +239,15 @@ def git_commit() -> str:
             cwd=here, capture_output=True, text=True, check=True,
         ).stdout.strip()  # fmt: skip
     except (OSError, subprocess.CalledProcessError):
-        return "unknown"
+        # A copy without its .git (a lent GPU machine gets the files alone):
+        # the commit its sender named, if any.
+        return os.environ.get("UMPNET_GIT_COMMIT", "unknown")
     return f"{head}-dirty" if changed else head
 
 
 def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--preset", help="paper, cpu-small (the default) or smoke")
+    p.add_argument("--preset", help="paper, cpu-small (the default), gpu-medium or smoke")
     p.add_argument(
         "--config",
         type=Path,
@@ -279,7 +282,17 @@ def parse_args(argv=None):
         help="collect on N Ray actors (each with its share of the environments); 0: in this process",
     )
     p.add_argument("--ray-address", help="an existing Ray cluster (as for ray.init); default: a local one")
+    p.add_argument(
+        "--time-limit",
+        type=float,
+        metavar="SECONDS",
+        help="stop after the epoch that passes SECONDS of wall time, with a checkpoint (--resume continues "
+        "it) and the export: for a lease that ends (a lent GPU machine, a session); the schedules keep "
+        "their epochs, so the run is the same run stopped early",
+    )
     a = p.parse_args(argv)
+    if a.time_limit is not None and not a.time_limit > 0:
+        p.error(f"--time-limit {a.time_limit}: expected a positive number of seconds")
     if a.ray < 0:
         p.error(f"--ray {a.ray}: expected 0 (local collection) or a number of actors")
     if a.aux_fields is not None and not (a.aux_fields >= 0 and a.aux_fields < 1e3):
@@ -466,6 +479,7 @@ def main(argv=None) -> int:
     bar = tqdm(
         range(start, cfg.epochs), initial=start, total=cfg.epochs, desc="epochs", disable=not sys.stderr.isatty()
     )
+    last = cfg.epochs  # the epoch the run ends at: cfg.epochs, or earlier under --time-limit
     for epoch in bar:
         t0 = time.perf_counter()
         if collection is not None:
@@ -494,7 +508,10 @@ def main(argv=None) -> int:
         if stats["probe_s"]:
             writer.add_scalar("time/dense_labels_per_s", stats["dense_labels"] / stats["probe_s"], epoch)
         bar.set_postfix(loss=f"{float(out_l['loss/total'].detach()):.3f}", sim=f"{share:.0%}")
-        if (epoch + 1) % cfg.checkpoint_every == 0 or epoch + 1 == cfg.epochs:
+        out_of_time = args.time_limit is not None and time.perf_counter() - t_start > args.time_limit
+        if out_of_time:
+            last = epoch + 1
+        if (epoch + 1) % cfg.checkpoint_every == 0 or epoch + 1 == cfg.epochs or out_of_time:
             ck = {
                 "config": dataclasses.asdict(cfg),
                 "model": model.state_dict(),
@@ -516,12 +533,15 @@ def main(argv=None) -> int:
                 f"epoch {epoch + 1}/{cfg.epochs} loss {float(out_l['loss/total'].detach()):.4f} sim share {share:.0%}",
                 flush=True,
             )
+        if out_of_time:
+            print(f"--time-limit {args.time_limit:g} s: stopped after epoch {last} of {cfg.epochs}", flush=True)
+            break
     writer.close()
     if collection is not None:
         collection.close()
-    prov = provenance(cfg.epochs)
+    prov = provenance(last)
     print(
-        f"trained {cfg.epochs} epochs in {prov['wall_seconds']:.0f} s; simulation {prov['simulation_share']:.0%} of the time"
+        f"trained {last} epochs in {prov['wall_seconds']:.0f} s; simulation {prov['simulation_share']:.0%} of the time"
     )
     print(f"AoT labels collected (-1, 0, +1): {stats['aot_counts']}")
     rate = stats["steps"] / max(stats["collect_wall_s"], 1e-9)
