@@ -10,7 +10,8 @@
 # stop with a checkpoint at SECONDS; the packages are exported at home, where
 # the runtime's ONNX Runtime checks them. The machine needs python3 with
 # PyTorch and the umpnet bindings on PYTHONPATH (crates/py/python, with the
-# extension built at home: it is abi3, so any Python >= 3.9 loads it).
+# extension built at home: it is abi3, so any Python >= 3.9 loads it). Set
+# UMPNET_GIT_COMMIT to the commit sent: the copy there may hold a stale .git.
 set -uo pipefail
 out=${1:?usage: scripts/device_train.sh OUT SECONDS}
 seconds=${2:?usage: scripts/device_train.sh OUT SECONDS}

@@ -230,6 +230,10 @@ def git_commit() -> str:
     """The commit the training code runs from, with "-dirty" when that code
     has uncommitted changes (the commit alone would then not reproduce it)."""
     here = Path(__file__).resolve().parent
+    if os.environ.get("UMPNET_GIT_COMMIT"):
+        # Named by whoever sent the files (a lent GPU machine's copy can carry
+        # a stale .git of its own).
+        return os.environ["UMPNET_GIT_COMMIT"]
     try:
         head = subprocess.run(
             ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, check=True
@@ -239,9 +243,7 @@ def git_commit() -> str:
             cwd=here, capture_output=True, text=True, check=True,
         ).stdout.strip()  # fmt: skip
     except (OSError, subprocess.CalledProcessError):
-        # A copy without its .git (a lent GPU machine gets the files alone):
-        # the commit its sender named, if any.
-        return os.environ.get("UMPNET_GIT_COMMIT", "unknown")
+        return "unknown"
     return f"{head}-dirty" if changed else head
 
 
