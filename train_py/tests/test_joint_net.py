@@ -107,7 +107,14 @@ def test_a_time_limit_stops_with_a_checkpoint_that_resumes(tmp_path):
     joint_net.train(dataclasses.replace(SMALL, steps=50), tmp_path, resume=False, time_limit=1e-9)
     assert torch.load(tmp_path / "joint.pt", weights_only=False)["step"] == 1
     joint_net.train(dataclasses.replace(SMALL, steps=3), tmp_path, resume=True)
-    assert torch.load(tmp_path / "joint.pt", weights_only=False)["step"] == 3
+    ck = torch.load(tmp_path / "joint.pt", weights_only=False)
+    assert ck["step"] == 3 and ck["device"] == "cpu"
+    # A shipped checkpoint keeps its weights alone: a resume starts Adam afresh from them.
+    del ck["optimizer"]
+    torch.save(ck, tmp_path / "joint.pt")
+    model = joint_net.train(dataclasses.replace(SMALL, steps=4), tmp_path, resume=True)
+    assert torch.load(tmp_path / "joint.pt", weights_only=False)["step"] == 4
+    assert not torch.equal(model.state_dict()["unet.head.weight"], ck["model"]["unet.head.weight"])
 
 
 def test_color_jitter_changes_colours_alone_and_keeps_them_in_range():

@@ -267,7 +267,13 @@ def train(
     if resume and checkpoint.exists():
         ck = torch.load(checkpoint, map_location="cpu", weights_only=False)
         model.load_state_dict(ck["model"])
-        opt.load_state_dict(ck["optimizer"])
+        if "optimizer" in ck:
+            opt.load_state_dict(ck["optimizer"])
+        else:
+            # A shipped checkpoint keeps its weights alone (a finished run, kept small).
+            print(f"{checkpoint}: no optimiser state; Adam starts afresh from the weights", flush=True)
+            for group in opt.param_groups:
+                group["initial_lr"] = cfg.lr  # the cosine schedule resumes at `step` from it
         step = ck["step"]
     from .train import git_commit
 
@@ -311,17 +317,18 @@ def train(
             )
         out_of_time = time_limit is not None and time.perf_counter() - t_start > time_limit
         if step % 250 == 0 or step == cfg.steps or out_of_time:
-            save(model, opt, cfg, step, checkpoint, commit)
+            where = torch.cuda.get_device_name() if str(device).startswith("cuda") else "cpu"
+            save(model, opt, cfg, step, checkpoint, commit, where)
         if out_of_time:
             print(f"--time-limit {time_limit:g} s: stopped at step {step} of {cfg.steps}", flush=True)
             break
     return model.cpu()
 
 
-def save(model, opt, cfg: JointConfig, step: int, path: Path, commit: str | None) -> None:
+def save(model, opt, cfg: JointConfig, step: int, path: Path, commit: str | None, device: str = "cpu") -> None:
     tmp = path.with_suffix(".tmp")
     state = {"model": model.state_dict(), "optimizer": opt.state_dict(), "config": asdict(cfg), "step": step}
-    torch.save({**state, "git_commit": commit}, tmp)
+    torch.save({**state, "git_commit": commit, "device": device}, tmp)
     tmp.replace(path)
 
 
@@ -342,6 +349,7 @@ def export(checkpoint: Path, package: Path) -> None:
         "command": "python -m umpnet_train.joint_net",
         "steps": ck["step"],
         "git_commit": ck.get("git_commit"),
+        "device": ck.get("device", "cpu"),
         "checkpoint": checkpoint.name,
     }
     export_joint(model, cfg, package, provenance)

@@ -123,10 +123,7 @@ impl Policy for LearnedPolicy {
         let goal = (env.scene().task == Task::Goal).then_some(reference.view());
         let choice = self.policy.position(current.view(), goal)?;
         self.reference = Some(reference);
-        if matches!(
-            self.policy.direction_filter,
-            DirectionFilter::Joint45 | DirectionFilter::Onward45
-        ) {
+        if self.policy.direction_filter.reads_joint() {
             self.joint = self
                 .policy
                 .frame_joint(current.view(), choice.pixel)?

@@ -106,10 +106,7 @@ impl Policy {
             .inner
             .position(img.view(), g.as_ref().map(|g| g.view()))
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        if matches!(
-            self.inner.direction_filter,
-            DirectionFilter::Joint45 | DirectionFilter::Onward45
-        ) {
+        if self.inner.direction_filter.reads_joint() {
             self.joint = self
                 .inner
                 .frame_joint(img.view(), c.pixel)

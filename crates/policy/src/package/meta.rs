@@ -125,6 +125,13 @@ impl DirectionFilter {
         Self::Onward45,
     ];
 
+    /// Whether the filter's rule reads the grasped part's joint from the
+    /// grasp frame (the package's JointNet): front ends read it once, after
+    /// the grasp, and hand it to every decision of the episode.
+    pub fn reads_joint(self) -> bool {
+        matches!(self, Self::Joint45 | Self::Onward45)
+    }
+
     /// The name in model.json's `direction_filter` and on the command line.
     pub fn name(self) -> &'static str {
         match self {
