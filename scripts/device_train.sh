@@ -12,6 +12,10 @@
 # PyTorch and the umpnet bindings on PYTHONPATH (crates/py/python, with the
 # extension built at home: it is abi3, so any Python >= 3.9 loads it). Set
 # UMPNET_GIT_COMMIT to the commit sent: the copy there may hold a stale .git.
+#
+# The lent machine takes the working tree and carried paths up to 64 MiB:
+# carry the extension (crates/py/python/umpnet/_umpnet.abi3.so, 11 MB after
+# `strip --strip-unneeded`) and, to resume, the run's folder under runs/.
 set -uo pipefail
 out=${1:?usage: scripts/device_train.sh OUT SECONDS}
 seconds=${2:?usage: scripts/device_train.sh OUT SECONDS}
