@@ -21,7 +21,6 @@ use umpnet_policy::frame_joint::{
     FrameJoint, JOINT_CHANNELS, joint_from_fields as joint_from_fields_rs,
 };
 use umpnet_policy::memory::EpisodeMemory;
-use umpnet_policy::policy::DirectionFilter;
 use umpnet_policy::{DecisionInput, ModelPackage, UmpnetPolicy};
 
 /// The ONNX Runtime library of the `onnxruntime` package installed in the
