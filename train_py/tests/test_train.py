@@ -740,3 +740,43 @@ def test_inverse_learns_from_a_policys_own_moves(tmp_path, fixture_package):
     args = ["--preset", "smoke", "--epochs", "1", "--variant", "inverse", "--inverse-data", fixture_package,
             "--out", str(tmp_path / "run")]  # fmt: skip
     assert train.main(args) == 0
+
+
+@pytest.mark.parametrize("package", ["umpnet-small", "umpnet-gpu-medium"])
+def test_a_shipped_package_is_what_its_committed_checkpoints_export(tmp_path, package):
+    """The checkpoints under models/checkpoints are the sources of the shipped
+    networks: exported again, every network answers as the shipped one."""
+    import onnxruntime as ort
+    from umpnet_train import export, joint_net
+
+    models = ROOT / "models"
+    shipped = models / package
+    assert export.main([str(models / "checkpoints" / package / "checkpoint.pt"), str(tmp_path)]) == 0
+    joint_net.export(models / "checkpoints" / "joint" / "joint.pt", tmp_path)
+    rng = np.random.default_rng(0)
+    near = np.array([0, -0.5, 0.3, 0.5, 0.5, 0.5, 0, 0, 1, 2.2], np.float32)  # about a real observation
+
+    def image():
+        return (rng.normal(size=(2, 96, 128, 10)) * 0.3 + near).astype(np.float32)
+
+    embedding = json.loads((shipped / "model.json").read_text())["embedding"]
+    inputs = {
+        "position": {"observation": image()},
+        "joint": {"observation": image()},
+        "direction_encoder": {
+            "observation": image(),
+            "reference": image(),
+            "pixel": np.array([[40, 60], [10, 100]], np.int64),
+        },
+        "direction_decoder": {
+            "dist_embedding": rng.normal(size=(5, embedding)).astype(np.float32),
+            "aot_embedding": rng.normal(size=(5, embedding)).astype(np.float32),
+            "direction": rng.normal(size=(5, 3)).astype(np.float32),
+        },
+    }
+    for net, feed in inputs.items():
+        ours, theirs = (
+            ort.InferenceSession(str(folder / f"{net}.onnx")).run(None, feed) for folder in (tmp_path, shipped)
+        )
+        for a, b in zip(ours, theirs, strict=True):
+            np.testing.assert_allclose(a, b, atol=1e-4, err_msg=f"{package}/{net}.onnx")

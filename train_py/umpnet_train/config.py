@@ -176,36 +176,6 @@ PRESETS = {
         "iterations_per_epoch": 4,
         "checkpoint_every": 50,
     },
-    # cpu-small's schedule and position net with wider direction networks,
-    # twice the environments and four times the updates per epoch: for a
-    # lent GPU (scripts/device_train.sh), where the learner costs little.
-    "gpu-medium": {
-        "height": 96,
-        "width": 128,
-        "position_widths": (8, 16, 32),
-        "direction_widths": (16, 32, 64, 128),
-        "embedding": 64,
-        "action_embedding": 32,
-        "decoder_hidden": 256,
-        "num_envs": 32,
-        "replay_size": 12800,
-        "epochs": 600,
-        "position_start_epoch": 0,
-        "position_decay_epochs": 200,
-        "direction_start_epoch": 0,
-        "direction_decay_epochs": 300,
-        "seq_start": 4,
-        "seq_every": 100,
-        "seq_after": 150,
-        "seq_max": 8,
-        "lr": 1e-3,
-        "adam_betas": (0.9, 0.999),
-        "lr_decay_every": 250,
-        "iterations_per_epoch": 16,
-        "batch_direction": 48,
-        "dense_states": 16,
-        "checkpoint_every": 25,
-    },
     "smoke": {
         "random_grasp": "object",
         "height": 48,
@@ -227,6 +197,23 @@ PRESETS = {
         "checkpoint_every": 1,
         "eval_episodes": 1,
     },
+}
+# cpu-small's schedule and position net with wider direction networks,
+# twice the environments and four times the updates per epoch: for a lent
+# GPU (scripts/device_train.sh), where the learner costs little.
+PRESETS["gpu-medium"] = {
+    **PRESETS["cpu-small"],
+    "direction_widths": (16, 32, 64, 128),
+    "embedding": 64,
+    "action_embedding": 32,
+    "decoder_hidden": 256,
+    "num_envs": 32,
+    "replay_size": 12800,
+    "epochs": 600,
+    "iterations_per_epoch": 16,
+    "batch_direction": 48,
+    "dense_states": 16,
+    "checkpoint_every": 25,
 }
 
 
