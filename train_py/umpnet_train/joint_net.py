@@ -184,22 +184,22 @@ def make_dataset(cfg: JointConfig, workers: int = 1, size: int = CHUNK) -> dict[
     """`cfg.frames` frames, spread evenly over the training categories, made
     by `workers` processes (the same frames for any number) in chunks of
     `size`."""
+    import contextlib
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
     chunks = range((cfg.frames + size - 1) // size)
     data = _empty(cfg.frames, cfg.height, cfg.width)
-    if workers > 1:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        # spawn, not fork: the parent may already hold threads (PyTorch's, CUDA's).
-        with ProcessPoolExecutor(min(workers, len(chunks)), mp_context=multiprocessing.get_context("spawn")) as pool:
-            parts = pool.map(make_chunk, [cfg] * len(chunks), chunks, [size] * len(chunks))
-            for chunk, part in zip(chunks, parts, strict=True):
-                for k, v in part.items():
-                    data[k][chunk * size : chunk * size + len(v)] = v
-        return data
-    for chunk in chunks:
-        for k, v in make_chunk(cfg, chunk, size).items():
-            data[k][chunk * size : chunk * size + len(v)] = v
+    with contextlib.ExitStack() as stack:
+        run = map
+        if workers > 1:
+            # spawn, not fork: the parent may already hold threads (PyTorch's, CUDA's).
+            spawn = multiprocessing.get_context("spawn")
+            run = stack.enter_context(ProcessPoolExecutor(min(workers, len(chunks)), mp_context=spawn)).map
+        parts = run(make_chunk, [cfg] * len(chunks), chunks, [size] * len(chunks))
+        for chunk, part in zip(chunks, parts, strict=True):
+            for k, v in part.items():
+                data[k][chunk * size : chunk * size + len(v)] = v
     return data
 
 
@@ -259,7 +259,8 @@ def train(
     `workers` processes. Returns the model, on the CPU."""
     t_start = time.perf_counter()
     torch.manual_seed(cfg.seed)
-    model = JointNet(cfg)
+    # On `device` before the optimiser: a resumed Adam state follows its parameters there.
+    model = JointNet(cfg).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     step = 0
     out.mkdir(parents=True, exist_ok=True)
@@ -283,12 +284,7 @@ def train(
     # training there); a batch is made full precision as it is drawn.
     data = {k: torch.from_numpy(v).to(device) for k, v in make_dataset(cfg, workers).items()}
     print(f"{cfg.frames} frames in {time.perf_counter() - t0:.0f} s", flush=True)
-    model.to(device)
-    # Adam's state follows its parameters (loaded on the CPU above).
-    for state in opt.state.values():
-        for k, v in state.items():
-            if torch.is_tensor(v) and k != "step":
-                state[k] = v.to(device)
+    where = torch.cuda.get_device_name() if str(device).startswith("cuda") else "cpu"
     rng = np.random.default_rng(cfg.seed + step)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, cfg.steps, last_epoch=step - 1 if step else -1)
     model.train()
@@ -317,7 +313,6 @@ def train(
             )
         out_of_time = time_limit is not None and time.perf_counter() - t_start > time_limit
         if step % 250 == 0 or step == cfg.steps or out_of_time:
-            where = torch.cuda.get_device_name() if str(device).startswith("cuda") else "cpu"
             save(model, opt, cfg, step, checkpoint, commit, where)
         if out_of_time:
             print(f"--time-limit {time_limit:g} s: stopped at step {step} of {cfg.steps}", flush=True)
