@@ -97,6 +97,27 @@ def test_the_prev90_filter_never_turns_back_on_the_last_move(tmp_path):
     assert "direction_filter" not in json.loads((tmp_path / "plain" / "results.json").read_text())["summary"]
 
 
+def test_the_grasp_rule_is_the_packages_unless_named_and_eval_records_it(tmp_path, fixture_package):
+    """The shipped package weights its grasp by the JointNet's movable mask;
+    `--grasp-rule affordance` (the paper's) picks other pixels in some
+    scenes, eval records the override, and a package without a JointNet
+    refuses the movable rule by name."""
+
+    def pixel(seed, *flags):
+        args = ("--json", "explore", "--category", "Door", "--policy", "umpnet", "--steps", "1")
+        return json.loads(run(*args, "--seed", str(seed), *flags).stdout)["pixel"]
+
+    assert any(pixel(s) != pixel(s, "--grasp-rule", "affordance") for s in range(6))
+    for s in range(2):
+        assert pixel(s) == pixel(s, "--grasp-rule", "affordance_times_movable")
+    ev = ["eval", "--categories", "Box", "--episodes-per-category", "1", "--policies", "umpnet"]
+    run(*ev, "--grasp-rule", "affordance", "--out", str(tmp_path / "paper"))
+    assert json.loads((tmp_path / "paper" / "results.json").read_text())["summary"]["grasp_rule"] == "affordance"
+    steer = str(Path(fixture_package) / "steer")
+    p = run(*ev, "--policies", f"s={steer}", "--grasp-rule", "affordance_times_movable", check=False)
+    assert p.returncode == 2 and "files.joint" in p.stderr and "--grasp-rule" in p.stderr, p.stderr
+
+
 def test_the_sampler_ablations_draw_as_named_and_eval_records_them(tmp_path):
     def candidates(*flags):
         args = ("--json", "explore", "--category", "Door", "--policy", "umpnet", "--steps", "1")

@@ -43,6 +43,11 @@ pub struct EpisodeArgs {
     /// gripper went; exploration only).
     #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
     pub direction_filter: Option<DirectionFilter>,
+    /// A learned policy's grasp rule instead of its package's (model.json
+    /// `grasp`): affordance (the paper: the PositionNet's best pixel) or
+    /// affordance_times_movable (weighted by the JointNet's movable mask).
+    #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
+    pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
     pub sampler: crate::policies::SamplerArgs,
     /// Model package for --policy umpnet (default: models/umpnet-small).
@@ -78,6 +83,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         1,
         task,
         a.direction_filter,
+        a.grasp_rule,
         a.sampler.sampler(),
     )?;
     let mut policy: Box<dyn Policy> = match resolved.factories.first() {

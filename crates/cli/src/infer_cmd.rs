@@ -56,6 +56,11 @@ pub struct InferArgs {
     /// onward45 (exploration only); docs/cli.md says what each keeps.
     #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::DirectionFilter>(crate::DIRECTION_FILTERS))]
     pub direction_filter: Option<umpnet_policy::policy::DirectionFilter>,
+    /// A learned policy's grasp rule instead of its package's (model.json
+    /// `grasp`): affordance (the paper: the PositionNet's best pixel) or
+    /// affordance_times_movable (weighted by the JointNet's movable mask).
+    #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
+    pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
     pub sampler: crate::policies::SamplerArgs,
     /// Pixel (row,col) the gripper holds; without it the position action is chosen.
@@ -538,6 +543,9 @@ pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
     let mut policy = UmpnetPolicy::new(std::sync::Arc::new(pkg));
     if let Some(f) = a.direction_filter {
         policy = policy.with_direction_filter(f);
+    }
+    if let Some(g) = a.grasp_rule {
+        policy = policy.with_grasp(g)?;
     }
     if let Some(s) = a.sampler.sampler() {
         policy = policy.with_sampler(s);

@@ -163,6 +163,7 @@ pub const PHYSICS: &[&str] = &["reference", "ideal"];
 pub const PROTOCOLS: &[&str] = &["paper", "strict"];
 pub const TASKS: &[&str] = &["exploration|explore", "goal"];
 pub const RENDERERS: &[&str] = &["auto", "wgpu|gpu", "cpu"];
+pub const GRASP_RULES: &[&str] = &["affordance", "affordance_times_movable"];
 pub const DIRECTION_FILTERS: &[&str] = &[
     "none", "normal90", "prev90", "joint45", "goal45", "onward45",
 ];

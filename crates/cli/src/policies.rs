@@ -7,7 +7,7 @@ use std::sync::Arc;
 use umpnet_eval::benchmark::PolicyFactory;
 use umpnet_eval::learned::LearnedPolicy;
 use umpnet_policy::cem::Sampler;
-use umpnet_policy::policy::DirectionFilter;
+use umpnet_policy::policy::{DirectionFilter, GraspRule};
 use umpnet_sim::scene::Task;
 
 /// Where the shipped model is looked for, in order: $UMPNET_MODEL (a package
@@ -88,13 +88,14 @@ impl SamplerArgs {
 }
 
 /// Packages are checked against `task`: an Inverse package has no exploration
-/// behaviour. `filter` replaces every learned package's direction filter.
+/// behaviour. `filter` and `grasp` replace every learned package's.
 pub fn resolve(
     specs: &[String],
     model: Option<&Path>,
     sessions: usize,
     task: Task,
     filter: Option<DirectionFilter>,
+    grasp: Option<GraspRule>,
     sampler: Option<Sampler>,
 ) -> Result<Resolved> {
     if filter == Some(DirectionFilter::Prev90) && task == Task::Goal {
@@ -164,6 +165,13 @@ pub fn resolve(
                         dir.display()
                     )));
                 }
+                if grasp == Some(GraspRule::AffordanceTimesMovable) && !pkg.has_joint() {
+                    return Err(usage(format!(
+                        "policy `{name}`: --grasp-rule affordance_times_movable reads the package's \
+                         JointNet, and {} has none (model.json `files.joint`)",
+                        dir.display()
+                    )));
+                }
                 let r = (pkg.meta.input.height as u32, pkg.meta.input.width as u32);
                 resolutions.insert(name.clone(), r);
                 packages.push((name.clone(), dir.clone()));
@@ -175,6 +183,9 @@ pub fn resolve(
                     }
                     if let Some(s) = sampler {
                         p = p.with_sampler(s);
+                    }
+                    if let Some(g) = grasp {
+                        p = p.with_grasp(g)?;
                     }
                     Ok(Box::new(p) as Box<dyn umpnet_eval::Policy>)
                 });

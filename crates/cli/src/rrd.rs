@@ -383,6 +383,7 @@ mod tests {
             Task::Goal,
             None,
             None,
+            None,
         )
         .expect("the shipped model (and ONNX Runtime) must load");
         let (_, make) = &resolved.factories[0];

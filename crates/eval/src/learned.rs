@@ -83,6 +83,12 @@ impl LearnedPolicy {
         self
     }
 
+    /// The policy under another grasp rule than its package's.
+    pub fn with_grasp(mut self, grasp: umpnet_policy::policy::GraspRule) -> Result<Self> {
+        self.policy = self.policy.with_grasp(grasp)?;
+        Ok(self)
+    }
+
     /// The policy drawing candidates with another sampler than the paper's CEM.
     pub fn with_sampler(mut self, sampler: umpnet_policy::cem::Sampler) -> Self {
         self.policy = self.policy.with_sampler(sampler);

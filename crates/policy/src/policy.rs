@@ -59,7 +59,11 @@ impl DecisionInput<'_> {
 
 // The filter is one of model.json's closed sets; it is named here too,
 // where callers choose it.
-pub use crate::package::DirectionFilter;
+pub use crate::package::{DirectionFilter, GraspRule};
+
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
 
 /// Where to grasp, and the map it was chosen from.
 #[derive(Clone, Debug)]
@@ -78,6 +82,8 @@ pub struct UmpnetPolicy {
     pub package: Arc<ModelPackage>,
     /// The package's `direction_filter`, unless overridden.
     pub direction_filter: DirectionFilter,
+    /// The package's `grasp` rule, unless overridden.
+    pub grasp: GraspRule,
     /// How candidates are drawn: the paper's CEM unless overridden (ablations).
     pub sampler: Sampler,
 }
@@ -87,9 +93,11 @@ impl UmpnetPolicy {
     pub fn new(package: Arc<ModelPackage>) -> Self {
         // The loader has checked the name.
         let direction_filter = package.meta.direction_filter;
+        let grasp = package.meta.grasp;
         Self {
             package,
             direction_filter,
+            grasp,
             sampler: Sampler::default(),
         }
     }
@@ -105,6 +113,21 @@ impl UmpnetPolicy {
     pub fn with_direction_filter(mut self, filter: DirectionFilter) -> Self {
         self.direction_filter = filter;
         self
+    }
+
+    /// The same package under another grasp rule (`Affordance` is the
+    /// paper's; the movable weighting needs the package's JointNet).
+    pub fn with_grasp(mut self, grasp: GraspRule) -> Result<Self> {
+        if grasp == GraspRule::AffordanceTimesMovable && !self.package.has_joint() {
+            return Err(PolicyError::Input(format!(
+                "{}: the `{}` grasp reads the package's JointNet, and it has none \
+                 (model.json `files.joint`)",
+                self.package.dir.display(),
+                grasp.name()
+            )));
+        }
+        self.grasp = grasp;
+        Ok(self)
     }
 
     /// (height, width) of the observations the package takes.
@@ -139,6 +162,11 @@ impl UmpnetPolicy {
 
     /// Best pixel of the affordance map among pixels with depth; with a goal
     /// observation, only where current and goal differ (the paper's mask).
+    /// Under [`GraspRule::AffordanceTimesMovable`] the map is the
+    /// PositionNet's probability times the JointNet's probability that the
+    /// pixel lies on a movable part: the JointNet learned that mask densely,
+    /// from every pixel of many more frames, and it keeps the grasp off the
+    /// static parts of objects unlike the training ones.
     pub fn position(
         &self,
         observation: ArrayView3<'_, f32>,
@@ -154,7 +182,15 @@ impl UmpnetPolicy {
             )));
         }
         let obs4 = observation.insert_axis(Axis(0));
-        let aff = self.package.position(obs4)?.index_axis_move(Axis(0), 0);
+        let mut aff = self.package.position(obs4)?.index_axis_move(Axis(0), 0);
+        if self.grasp == GraspRule::AffordanceTimesMovable
+            && let Some(fields) = self.package.joint_fields(obs4)?
+        {
+            let movable_logit = fields
+                .index_axis_move(Axis(0), 0)
+                .index_axis_move(Axis(0), 0);
+            aff.zip_mut_with(&movable_logit, |a, &l| *a *= sigmoid(l));
+        }
         let (h, w) = (aff.shape()[0], aff.shape()[1]);
         let allowed = |r: usize, c: usize| -> bool {
             if observation[[r, c, 9]] <= 0.0 {
@@ -287,29 +323,33 @@ impl UmpnetPolicy {
             Sampler::Cem { n } => (n, false),
             Sampler::Uniform { n } => (2 * n, true),
         };
-        let first: Vec<Vec<Vector3<f32>>> = inputs
+        let mut first: Vec<Vec<Vector3<f32>>> = inputs
             .iter()
             .zip(rngs.iter_mut())
             .map(|(inp, rng)| first_round(rng, inp.banned, n))
             .collect();
         let rules = self.rules(inputs);
+        if uniform {
+            Keep::add_exact_ways(&rules, &mut first);
+        }
         let mut s1 = self.score(&de, &ae, &first)?;
         Self::filter(&rules, &first, &mut s1);
         if uniform {
             return Ok((0..b)
                 .map(|i| CemResult {
-                    direction: select(&first[i], &s1[i], inputs[i].mode),
+                    direction: rules[i].settle(select(&first[i], &s1[i], inputs[i].mode)),
                     candidates: first[i].clone(),
                     scores: s1[i].clone(),
                 })
                 .collect());
         }
-        let second: Vec<Vec<Vector3<f32>>> = inputs
+        let mut second: Vec<Vec<Vector3<f32>>> = inputs
             .iter()
             .zip(rngs.iter_mut())
             .enumerate()
             .map(|(i, (inp, rng))| second_round(rng, &first[i], &s1[i], inp.mode, inp.banned, n))
             .collect();
+        Keep::add_exact_ways(&rules, &mut second);
         let mut s2 = self.score(&de, &ae, &second)?;
         Self::filter(&rules, &second, &mut s2);
         Ok((0..b)
@@ -318,7 +358,7 @@ impl UmpnetPolicy {
                     first[i].iter().chain(&second[i]).copied().collect();
                 let scores: Vec<Score> = s1[i].iter().chain(&s2[i]).copied().collect();
                 CemResult {
-                    direction: select(&candidates, &scores, inputs[i].mode),
+                    direction: rules[i].settle(select(&candidates, &scores, inputs[i].mode)),
                     candidates,
                     scores,
                 }
@@ -367,9 +407,14 @@ impl UmpnetPolicy {
                     DirectionFilter::Prev90 => inp.previous.map_or(Keep::All, Keep::HalfSpace),
                     DirectionFilter::Joint45 => joint_line(inp, gripper),
                     DirectionFilter::Goal45 => goal_way(inp, gripper),
-                    DirectionFilter::Onward45 => inp
-                        .went()
-                        .map_or_else(|| joint_line(inp, gripper), |way| Keep::Way { way, aot: 1 }),
+                    DirectionFilter::Onward45 => inp.went().map_or_else(
+                        || joint_line(inp, gripper),
+                        |way| Keep::Way {
+                            way,
+                            aot: 1,
+                            exact: true,
+                        },
+                    ),
                 }
             })
             .collect()
@@ -393,7 +438,7 @@ impl UmpnetPolicy {
                         *s = no_effect
                     }
                     Keep::Line(_) => {}
-                    Keep::Way { way, aot } => {
+                    Keep::Way { way, aot, .. } => {
                         if d.dot(way) < std::f32::consts::FRAC_1_SQRT_2 {
                             *s = no_effect;
                         } else {
@@ -451,11 +496,46 @@ enum Keep {
     HalfSpace(Vector3<f32>),
     /// Within 45 degrees of this line, either way.
     Line(Vector3<f32>),
-    /// Within 45 degrees of `way`, with this Arrow of Time.
+    /// Within 45 degrees of `way`, with this Arrow of Time; `exact`: a
+    /// choice within the cone moves along `way` itself.
     Way {
         way: Vector3<f32>,
         aot: i8,
+        exact: bool,
     },
+}
+
+impl Keep {
+    /// Adds each exact rule's way to its candidates, so that the move it
+    /// settles on is scored by the heads like any other (front ends report
+    /// the chosen candidate's predictions).
+    fn add_exact_ways(rules: &[Keep], cands: &mut [Vec<Vector3<f32>>]) {
+        for (rule, c) in rules.iter().zip(cands) {
+            if let &Keep::Way {
+                way, exact: true, ..
+            } = rule
+            {
+                c.push(way);
+            }
+        }
+    }
+
+    /// The direction to execute for the heads' choice. `onward45` keeps to
+    /// the gripper's own last motion exactly: the part's constraint turned
+    /// that motion onto the joint's path, while a choice up to 45 degrees
+    /// off it pushes into the constraint, and the force-limited move stalls
+    /// after a fraction of its 0.18 m (and of delta).
+    fn settle(&self, chosen: Option<Vector3<f32>>) -> Option<Vector3<f32>> {
+        match (self, chosen) {
+            (
+                &Self::Way {
+                    way, exact: true, ..
+                },
+                Some(d),
+            ) if d.dot(&way) >= std::f32::consts::FRAC_1_SQRT_2 => Some(way),
+            _ => chosen,
+        }
+    }
 }
 
 /// The `joint45` filter's rule: along the line the JointNet's joint moves
@@ -485,7 +565,11 @@ fn goal_way(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
     let hidden = change.filter(|&(_, hidden)| hidden).map(|(way, _)| way);
     seen.or(moved)
         .or(hidden)
-        .map_or(Keep::All, |way| Keep::Way { way, aot: -1 })
+        .map_or(Keep::All, |way| Keep::Way {
+            way,
+            aot: -1,
+            exact: false,
+        })
 }
 
 /// The most probable class of a row of AoT probabilities in the canonical

@@ -228,4 +228,19 @@ fn a_joint_net_is_optional_and_checked_like_the_other_networks() {
         e.contains("position.onnx") && e.contains("output `joint_fields` missing"),
         "{e}"
     );
+    // The grasp rule that reads the JointNet needs one; an unknown rule is
+    // refused with the names the parser accepts.
+    let e = edited(&|m| {
+        m["files"].as_object_mut().unwrap().remove("joint");
+        m["grasp"] = "affordance_times_movable".into();
+    });
+    assert!(
+        e.contains("`grasp` is `affordance_times_movable`") && e.contains("`files.joint`"),
+        "{e}"
+    );
+    let e = edited(&|m| m["grasp"] = "movable".into());
+    assert!(
+        e.contains("movable") && e.contains("affordance_times_movable"),
+        "{e}"
+    );
 }

@@ -676,6 +676,47 @@ fn the_goal45_filter_follows_the_grippers_own_motion_where_it_agrees_with_the_fr
 }
 
 #[test]
+fn the_movable_grasp_weights_the_affordance_by_the_joint_nets_mask() {
+    use umpnet_policy::policy::GraspRule;
+    let Some(plain) = policy("steer") else {
+        return;
+    };
+    // Without a JointNet the rule is refused by name.
+    let err = plain
+        .clone()
+        .with_grasp(GraspRule::AffordanceTimesMovable)
+        .err()
+        .unwrap();
+    assert!(
+        err.to_string().contains("affordance_times_movable")
+            && err.to_string().contains("files.joint"),
+        "{err}"
+    );
+    let Some(joint) = policy("joint") else {
+        return;
+    };
+    // The fixture's JointNet calls every pixel movable with logit 5: the
+    // chosen map is the PositionNet's scaled by that probability, pixel by
+    // pixel.
+    let joint = joint.with_grasp(GraspRule::AffordanceTimesMovable).unwrap();
+    let obs = observation(&joint, 21);
+    let aff = affordance(&joint, &obs);
+    let chosen = joint.position(obs.view(), None).unwrap();
+    let movable = 1.0 / (1.0 + (-5.0f32).exp());
+    for ((r, c), &a) in aff.indexed_iter() {
+        let got = chosen.affordance[[r, c]];
+        assert!(
+            (got - a * movable).abs() < 1e-5,
+            "({r}, {c}): {got} vs {a} x {movable}"
+        );
+    }
+    assert_eq!(chosen.pixel, best(&aff, |_, _| true));
+    // Under the paper's rule the map is the PositionNet's own.
+    let paper = joint.with_grasp(GraspRule::Affordance).unwrap();
+    assert_eq!(paper.position(obs.view(), None).unwrap().affordance, aff);
+}
+
+#[test]
 fn the_onward45_filter_explores_onward_along_where_the_gripper_went() {
     use umpnet_policy::policy::DirectionFilter;
     let Some(policy) = policy("steer") else {
@@ -705,7 +746,15 @@ fn the_onward45_filter_explores_onward_along_where_the_gripper_went() {
             assert_eq!((s.distance, s.aot), (-1.0, 0), "{d:?}");
         }
     }
-    assert!(r.direction.unwrap().dot(&went) >= cone);
+    // The heads' choice lies in the cone, and the move keeps to the motion
+    // itself, not to that choice.
+    assert!(
+        r.candidates
+            .iter()
+            .zip(&r.scores)
+            .any(|(d, s)| s.distance >= 0.0 && (d - went).norm() > 1e-3)
+    );
+    assert!((r.direction.unwrap() - went).norm() < 1e-5, "{r:?}");
     // Before a motion, or after one the part stopped within 2 cm, a package
     // without a JointNet leaves the choice to its heads.
     for motion in [None, Some(went * 0.01)] {

@@ -46,13 +46,14 @@ pub(crate) struct Policy {
 #[pymethods]
 impl Policy {
     #[new]
-    #[pyo3(signature = (model_dir, seed=0, threads=1, onnxruntime=None, direction_filter=None))]
+    #[pyo3(signature = (model_dir, seed=0, threads=1, onnxruntime=None, direction_filter=None, grasp_rule=None))]
     fn new(
         model_dir: PathBuf,
         seed: u64,
         threads: usize,
         onnxruntime: Option<PathBuf>,
         direction_filter: Option<&str>,
+        grasp_rule: Option<&str>,
     ) -> PyResult<Self> {
         if !(1..=MAX_THREADS).contains(&threads) {
             return Err(PyValueError::new_err(format!(
@@ -67,11 +68,22 @@ impl Policy {
                     .map_err(|e| PyValueError::new_err(format!("direction_filter: {e}")))
             })
             .transpose()?;
+        let grasp = grasp_rule
+            .map(|g| {
+                g.parse::<umpnet_policy::policy::GraspRule>()
+                    .map_err(|e| PyValueError::new_err(format!("grasp_rule: {e}")))
+            })
+            .transpose()?;
         let pkg = ModelPackage::load(&model_dir, 1, threads, onnxruntime.as_deref())
             .map_err(policy_err)?;
         let mut inner = UmpnetPolicy::new(Arc::new(pkg));
         if let Some(f) = filter {
             inner = inner.with_direction_filter(f);
+        }
+        if let Some(g) = grasp {
+            inner = inner
+                .with_grasp(g)
+                .map_err(|e| PyValueError::new_err(format!("grasp_rule: {e}")))?;
         }
         Ok(Self {
             inner,

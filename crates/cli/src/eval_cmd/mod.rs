@@ -81,6 +81,11 @@ pub struct EvalArgs {
     /// (onward where the gripper went; exploration only).
     #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
     pub direction_filter: Option<DirectionFilter>,
+    /// A learned policy's grasp rule instead of its package's (model.json
+    /// `grasp`): affordance (the paper: the PositionNet's best pixel) or
+    /// affordance_times_movable (weighted by the JointNet's movable mask).
+    #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
+    pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
     pub sampler: crate::policies::SamplerArgs,
     /// Model package for `umpnet` (default: models/umpnet-small).
@@ -197,6 +202,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         threads,
         a.task,
         a.direction_filter,
+        a.grasp_rule,
         a.sampler.sampler(),
     )?;
     let mut models = BTreeMap::new();
@@ -256,6 +262,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         objects,
         partnet,
         direction_filter: a.direction_filter.map(|f| f.name().to_owned()),
+        grasp_rule: a.grasp_rule.map(|g| g.name().to_owned()),
         sampler: a
             .sampler
             .sampler()

@@ -47,6 +47,9 @@ pub struct RunInfo {
     /// not its package's own.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub direction_filter: Option<String>,
+    /// The grasp rule that replaced the packages' (`--grasp-rule`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grasp_rule: Option<String>,
     /// `--sampler`/`--cem-samples`: how every learned policy drew its
     /// candidates (`cem 32`, `uniform 64`), when not the paper's CEM with 64.
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -159,6 +159,45 @@ impl std::str::FromStr for DirectionFilter {
     }
 }
 
+/// How the runtime picks the grasp pixel (model.json's `grasp`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GraspRule {
+    /// The paper's: the PositionNet's most probable pixel.
+    #[default]
+    Affordance,
+    /// Beyond the paper: the PositionNet's probability times the JointNet's
+    /// probability that the pixel is on a movable part (needs `files.joint`).
+    AffordanceTimesMovable,
+}
+
+impl GraspRule {
+    /// Every rule, in the order the docs list them.
+    pub const ALL: [Self; 2] = [Self::Affordance, Self::AffordanceTimesMovable];
+
+    /// The name in model.json's `grasp` and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Affordance => "affordance",
+            Self::AffordanceTimesMovable => "affordance_times_movable",
+        }
+    }
+}
+
+impl std::str::FromStr for GraspRule {
+    type Err = PolicyError;
+    fn from_str(s: &str) -> Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|g| g.name() == s)
+            .ok_or_else(|| {
+                PolicyError::Input(format!(
+                    "unknown grasp rule `{s}`; expected affordance or affordance_times_movable"
+                ))
+            })
+    }
+}
+
 /// `model.json`.
 #[derive(Clone, Debug, serde::Deserialize, serde::Serialize)]
 pub struct ModelMeta {
@@ -182,6 +221,9 @@ pub struct ModelMeta {
     /// The filter the runtime applies unless a caller overrides it.
     #[serde(default)]
     pub direction_filter: DirectionFilter,
+    /// How the runtime picks the grasp pixel; the paper's rule when absent.
+    #[serde(default)]
+    pub grasp: GraspRule,
     /// The AoT class of each column of `aot_probs`: a permutation of -1, 0, +1
     /// (the exporter writes [-1, 0, 1]). The runtime reorders the columns to
     /// that canonical order, so packages of any class order mean the same.
@@ -314,6 +356,14 @@ impl ModelMeta {
             return fail(format!(
                 "`signed_distance_threshold` is {}, expected a finite number >= 0",
                 self.signed_distance_threshold
+            ));
+        }
+        if self.grasp == GraspRule::AffordanceTimesMovable && self.files.joint.is_none() {
+            return fail(format!(
+                "`grasp` is `{}`, which weights the grasp by the JointNet's movable mask, but \
+                 `files.joint` names no JointNet (use `affordance`, or add one with \
+                 `python -m umpnet_train.joint_net --export`)",
+                self.grasp.name()
             ));
         }
         self.decoder(meta_path).map(|_| ())

@@ -7,8 +7,8 @@ use crate::error::{PolicyError, Result};
 use crate::frame_joint::JOINT_CHANNELS;
 use crate::observation::CHANNELS;
 pub use meta::{
-    Branch, Branches, DirectionFilter, FORMAT_VERSION, Files, InputSpec, MAX_EMBEDDING, MAX_SIDE,
-    ModelMeta, Variant,
+    Branch, Branches, DirectionFilter, FORMAT_VERSION, Files, GraspRule, InputSpec, MAX_EMBEDDING,
+    MAX_SIDE, ModelMeta, Variant,
 };
 use ndarray::{Array1, Array2, Array3, Array4, ArrayView2, ArrayView4, Axis};
 use ort::session::Session;

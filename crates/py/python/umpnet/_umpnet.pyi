@@ -82,6 +82,7 @@ class Policy:
         threads: int = 1,
         onnxruntime: str | None = None,
         direction_filter: str | None = None,
+        grasp_rule: str | None = None,
     ) -> None: ...
     @property
     def resolution(self) -> tuple[int, int]: ...

@@ -51,10 +51,14 @@ class Policy(_Policy):
     loaded once per process: the first Policy's choice holds.
     ``direction_filter`` replaces the package's (``none``, ``normal90``,
     ``prev90``, ``joint45``, ``goal45`` or ``onward45``), as ``--direction-filter`` does
-    on the command line.
+    on the command line; ``grasp_rule`` replaces the package's ``grasp``
+    (``affordance``, the paper's, or ``affordance_times_movable``), as
+    ``--grasp-rule`` does.
     """
 
-    def __new__(cls, model_dir, seed: int = 0, threads: int = 1, onnxruntime=None, direction_filter=None):
+    def __new__(
+        cls, model_dir, seed: int = 0, threads: int = 1, onnxruntime=None, direction_filter=None, grasp_rule=None
+    ):
         if onnxruntime is None and "ORT_DYLIB_PATH" not in os.environ:
             onnxruntime = onnxruntime_library()
         return super().__new__(
@@ -64,16 +68,19 @@ class Policy(_Policy):
             threads,
             None if onnxruntime is None else os.fspath(onnxruntime),
             direction_filter,
+            grasp_rule,
         )
 
     @classmethod
-    def default(cls, seed: int = 0, threads: int = 1, direction_filter: str | None = None) -> Policy:
+    def default(
+        cls, seed: int = 0, threads: int = 1, direction_filter: str | None = None, grasp_rule: str | None = None
+    ) -> Policy:
         """The shipped model package (``umpnet-small``), as installed with the wheel."""
         if not (SHIPPED_MODEL / "model.json").is_file():
             raise FileNotFoundError(
                 f"the shipped model is not at {SHIPPED_MODEL}: this install of umpnet was built without it"
             )
-        return cls(SHIPPED_MODEL, seed=seed, threads=threads, direction_filter=direction_filter)
+        return cls(SHIPPED_MODEL, seed=seed, threads=threads, direction_filter=direction_filter, grasp_rule=grasp_rule)
 
     def act(self, obs: dict, task: str = "exploration", info: dict | None = None) -> dict:
         """The gym action for ``obs``: the grasp pixel in phase 0, then a
