@@ -70,8 +70,8 @@ EXPLORE_POLICIES := umpnet,umpnet-300=$(B)/umpnet-300,single-step=$(B)/single-st
 EPISODES ?= 50
 SPLIT ?= test
 eval-baselines: build
-	$(UMPNET) eval --task exploration --split $(SPLIT) --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES) --out out/baselines-exploration-$(SPLIT) --force
-	$(UMPNET) eval --task goal --split $(SPLIT) --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --out out/baselines-goal-$(SPLIT) --force
+	$(UMPNET) eval --task exploration --split $(SPLIT) --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES) --grasp-rule affordance --out out/baselines-exploration-$(SPLIT) --force
+	$(UMPNET) eval --task goal --split $(SPLIT) --episodes-per-category $(EPISODES) --policies $(EXPLORE_POLICIES),inverse=$(B)/inverse --grasp-rule affordance --out out/baselines-goal-$(SPLIT) --force
 
 # Objects made elsewhere (docs/objects.md): every articulated object of the
 # installed metaworld package, imported through MuJoCo, scored like the
@@ -79,8 +79,8 @@ eval-baselines: build
 OBJECT_EPISODES ?= 50
 eval-objects: build py
 	$(PY) -m umpnet.objects metaworld --out data/external --force
-	$(UMPNET) eval --task goal --objects data/external --episodes-per-category $(OBJECT_EPISODES) --policies umpnet,random,oracle --out out/external-goal --force
-	$(UMPNET) eval --task exploration --objects data/external --episodes-per-category $(OBJECT_EPISODES) --policies umpnet,random,oracle --out out/external-exploration --force
+	$(UMPNET) eval --task goal --objects data/external --episodes-per-category $(OBJECT_EPISODES) --policies umpnet,random,oracle --grasp-rule affordance --out out/external-goal --force
+	$(UMPNET) eval --task exploration --objects data/external --episodes-per-category $(OBJECT_EPISODES) --policies umpnet,random,oracle --grasp-rule affordance --out out/external-exploration --force
 	$(PY) scripts/objects_table.py
 
 # The dense-articulation ablation: umpnet-300 and umpnet-300-fields (the same
