@@ -81,6 +81,12 @@ IMPORTED_BOUNDS = {
     "revolute": KindBounds(mean=0.0035, case_mean=0.007, max=0.022, links=0.0065),
     "prismatic": KindBounds(mean=0.0002, case_mean=0.00025, max=0.0004, links=0.00045, other_joints=0.00035),
 }
+# Meta-World's faucet knob, a light part turned near its axis: its mean gap
+# is 0.0079 rad on an AMD EPYC host without AVX-512 and was under the kind's
+# 0.007 on the AVX-512 hosts where the bounds were set, with the same code
+# and packages on both (max and link points stay within the kind's bounds).
+# A stated bound at about 1.5x the larger gap, as for GAPS.
+IMPORTED_CASE_MEANS = {"faucet knob_Joint_1": 0.012}
 # Chains and light parts, where PyBullet's 50 sweeps are far from converged
 # (golden.known_gaps): stated bounds at about 1.5x today's gap, so that the
 # gap cannot grow unseen. Mean, max, other joints, link points.
@@ -103,7 +109,9 @@ def _within(r, mean, worst, links, others=OTHER_JOINTS):
     return [f"{r.case.name}: {k} {v:.5f} > {b}" for k, (v, b) in found.items() if v > b]
 
 
-def _check_kinds(results, bounds):
+def _check_kinds(results, bounds, case_means=None):
+    """`case_means` replaces the kind's per-case mean bound for the cases it
+    names (object and joint, without the folder)."""
     failures = []
     for kind, b in bounds.items():
         of_kind = [r for r in results if r.case.kind == kind]
@@ -112,7 +120,8 @@ def _check_kinds(results, bounds):
         if mean > b.mean:
             failures.append(f"{kind}: mean {mean:.5f} over {len(of_kind)} cases > {b.mean}")
         for r in of_kind:
-            failures += _within(r, b.case_mean, b.max, b.links, b.other_joints)
+            case_mean = (case_means or {}).get(r.case.name.split("/", 1)[-1], b.case_mean)
+            failures += _within(r, case_mean, b.max, b.links, b.other_joints)
     assert not failures, "\n".join(failures)
 
 
@@ -175,6 +184,6 @@ def test_imported_mjcf_objects_match_pybullet_at_their_scene_scale(imported):
     assert len(several) == 3, [r.case.name for r in several]
     # Imported objects are tested at the scale their object_meta_info.json gives.
     assert all(r.case.scale != 1.0 for r in imported)
-    _check_kinds(imported, IMPORTED_BOUNDS)
+    _check_kinds(imported, IMPORTED_BOUNDS, IMPORTED_CASE_MEANS)
     moved = np.concatenate([np.abs(np.diff(r.reference)) for r in imported])
     assert (moved > 0.05).sum() > 10
