@@ -165,10 +165,9 @@ pub fn resolve(
                         dir.display()
                     )));
                 }
-                if grasp == Some(GraspRule::AffordanceTimesMovable) && !pkg.has_joint() {
+                if let Some(Err(why)) = grasp.map(|g| g.check_joint(pkg.has_joint())) {
                     return Err(usage(format!(
-                        "policy `{name}`: --grasp-rule affordance_times_movable reads the package's \
-                         JointNet, and {} has none (model.json `files.joint`)",
+                        "policy `{name}`: --grasp-rule: {}: {why}",
                         dir.display()
                     )));
                 }

@@ -132,7 +132,7 @@ impl Policy for LearnedPolicy {
         if self.policy.direction_filter.reads_joint() {
             self.joint = self
                 .policy
-                .frame_joint(current.view(), choice.pixel)?
+                .joint_at_grasp(current.view(), &choice)?
                 .map(|j| j.estimate);
         }
         Ok((choice.pixel.0 as u32, choice.pixel.1 as u32))

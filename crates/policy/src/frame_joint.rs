@@ -48,7 +48,7 @@ pub struct FrameJoint {
     pub voting_pixels: usize,
 }
 
-fn sigmoid(x: f32) -> f32 {
+pub(crate) fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
 }
 

@@ -61,10 +61,6 @@ impl DecisionInput<'_> {
 // where callers choose it.
 pub use crate::package::{DirectionFilter, GraspRule};
 
-fn sigmoid(x: f32) -> f32 {
-    1.0 / (1.0 + (-x).exp())
-}
-
 /// Where to grasp, and the map it was chosen from.
 #[derive(Clone, Debug)]
 pub struct PositionChoice {
@@ -72,6 +68,9 @@ pub struct PositionChoice {
     pub pixel: (usize, usize),
     /// H x W: the probability that acting at each pixel moves the object.
     pub affordance: Array2<f32>,
+    /// The JointNet's fields on this frame, where the grasp rule read them,
+    /// so that [`UmpnetPolicy::joint_at_grasp`] need not run it again.
+    pub joint_fields: Option<ndarray::Array3<f32>>,
 }
 
 /// The learned policy: a package's networks, the CEM over directions and
@@ -118,14 +117,9 @@ impl UmpnetPolicy {
     /// The same package under another grasp rule (`Affordance` is the
     /// paper's; the movable weighting needs the package's JointNet).
     pub fn with_grasp(mut self, grasp: GraspRule) -> Result<Self> {
-        if grasp == GraspRule::AffordanceTimesMovable && !self.package.has_joint() {
-            return Err(PolicyError::Input(format!(
-                "{}: the `{}` grasp reads the package's JointNet, and it has none \
-                 (model.json `files.joint`)",
-                self.package.dir.display(),
-                grasp.name()
-            )));
-        }
+        grasp
+            .check_joint(self.package.has_joint())
+            .map_err(|why| PolicyError::Input(format!("{}: {why}", self.package.dir.display())))?;
         self.grasp = grasp;
         Ok(self)
     }
@@ -160,6 +154,23 @@ impl UmpnetPolicy {
         ))
     }
 
+    /// [`Self::frame_joint`] at the grasp `choice` made on `observation`,
+    /// from the JointNet fields the grasp rule already read where it did.
+    pub fn joint_at_grasp(
+        &self,
+        observation: ArrayView3<'_, f32>,
+        choice: &PositionChoice,
+    ) -> Result<Option<crate::frame_joint::FrameJoint>> {
+        match &choice.joint_fields {
+            Some(fields) => Ok(crate::frame_joint::joint_from_fields(
+                observation,
+                fields.view(),
+                choice.pixel,
+            )),
+            None => self.frame_joint(observation, choice.pixel),
+        }
+    }
+
     /// Best pixel of the affordance map among pixels with depth; with a goal
     /// observation, only where current and goal differ (the paper's mask).
     /// Under [`GraspRule::AffordanceTimesMovable`] the map is the
@@ -183,13 +194,16 @@ impl UmpnetPolicy {
         }
         let obs4 = observation.insert_axis(Axis(0));
         let mut aff = self.package.position(obs4)?.index_axis_move(Axis(0), 0);
-        if self.grasp == GraspRule::AffordanceTimesMovable
-            && let Some(fields) = self.package.joint_fields(obs4)?
-        {
-            let movable_logit = fields
-                .index_axis_move(Axis(0), 0)
-                .index_axis_move(Axis(0), 0);
-            aff.zip_mut_with(&movable_logit, |a, &l| *a *= sigmoid(l));
+        let joint_fields = match self.grasp {
+            GraspRule::AffordanceTimesMovable => self
+                .package
+                .joint_fields(obs4)?
+                .map(|f| f.index_axis_move(Axis(0), 0)),
+            GraspRule::Affordance => None,
+        };
+        if let Some(fields) = &joint_fields {
+            let movable_logit = fields.index_axis(Axis(0), 0);
+            aff.zip_mut_with(&movable_logit, |a, &l| *a *= crate::frame_joint::sigmoid(l));
         }
         let (h, w) = (aff.shape()[0], aff.shape()[1]);
         let allowed = |r: usize, c: usize| -> bool {
@@ -228,6 +242,7 @@ impl UmpnetPolicy {
         Ok(PositionChoice {
             pixel,
             affordance: aff,
+            joint_fields,
         })
     }
 

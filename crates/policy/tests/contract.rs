@@ -235,7 +235,7 @@ fn a_joint_net_is_optional_and_checked_like_the_other_networks() {
         m["grasp"] = "affordance_times_movable".into();
     });
     assert!(
-        e.contains("`grasp` is `affordance_times_movable`") && e.contains("`files.joint`"),
+        e.contains("`grasp`: the `affordance_times_movable` grasp") && e.contains("`files.joint`"),
         "{e}"
     );
     let e = edited(&|m| m["grasp"] = "movable".into());

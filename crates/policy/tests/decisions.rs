@@ -711,9 +711,18 @@ fn the_movable_grasp_weights_the_affordance_by_the_joint_nets_mask() {
         );
     }
     assert_eq!(chosen.pixel, best(&aff, |_, _| true));
+    // The joint read at the grasp from the fields the rule kept is the one
+    // a fresh JointNet run reads.
+    assert!(chosen.joint_fields.is_some());
+    let kept = joint.joint_at_grasp(obs.view(), &chosen).unwrap();
+    let fresh = joint.frame_joint(obs.view(), chosen.pixel).unwrap();
+    assert!(kept.is_some());
+    assert_eq!(kept, fresh);
     // Under the paper's rule the map is the PositionNet's own.
     let paper = joint.with_grasp(GraspRule::Affordance).unwrap();
-    assert_eq!(paper.position(obs.view(), None).unwrap().affordance, aff);
+    let choice = paper.position(obs.view(), None).unwrap();
+    assert_eq!(choice.affordance, aff);
+    assert!(choice.joint_fields.is_none());
 }
 
 #[test]

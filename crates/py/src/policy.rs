@@ -120,7 +120,7 @@ impl Policy {
         if self.inner.direction_filter.reads_joint() {
             self.joint = self
                 .inner
-                .frame_joint(img.view(), c.pixel)
+                .joint_at_grasp(img.view(), &c)
                 .map_err(policy_err)?
                 .map(|j| j.estimate);
         }

@@ -182,6 +182,21 @@ impl GraspRule {
             Self::AffordanceTimesMovable => "affordance_times_movable",
         }
     }
+
+    /// Whether a package with (`has_joint`) or without a JointNet can pick
+    /// its grasp by this rule; the reason when it cannot. The one statement
+    /// of the rule that model.json, the policy and the CLI all check.
+    pub fn check_joint(self, has_joint: bool) -> std::result::Result<(), String> {
+        if self == Self::AffordanceTimesMovable && !has_joint {
+            return Err(format!(
+                "the `{}` grasp weights the grasp by the JointNet's movable mask, and the \
+                 package names no JointNet (model.json `files.joint`; use `affordance`, or add \
+                 one with `python -m umpnet_train.joint_net --export`)",
+                self.name()
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl std::str::FromStr for GraspRule {
@@ -358,13 +373,8 @@ impl ModelMeta {
                 self.signed_distance_threshold
             ));
         }
-        if self.grasp == GraspRule::AffordanceTimesMovable && self.files.joint.is_none() {
-            return fail(format!(
-                "`grasp` is `{}`, which weights the grasp by the JointNet's movable mask, but \
-                 `files.joint` names no JointNet (use `affordance`, or add one with \
-                 `python -m umpnet_train.joint_net --export`)",
-                self.grasp.name()
-            ));
+        if let Err(why) = self.grasp.check_joint(self.files.joint.is_some()) {
+            return fail(format!("`grasp`: {why}"));
         }
         self.decoder(meta_path).map(|_| ())
     }
