@@ -135,7 +135,7 @@ PYTEST = PYTHONPATH=tests/plugins PYTEST_ADDOPTS="-p skipguard" $(PY) -m pytest 
 
 test-python: build py fixture
 	# One process per suite: native libraries loaded by one suite cannot affect another.
-	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_e2e.py tests/test_skipguard.py tests/test_mutant_records.py
+	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_e2e.py tests/test_skipguard.py tests/test_mutant_records.py tests/test_episode_outcomes.py
 	# The bad-input corpus, one file per kind, each case under a memory cap and a deadline.
 	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_bad_inputs.py
 	# Ray on a local cluster: sharded evaluation, retries.
