@@ -1145,6 +1145,14 @@ def test_the_onward45_filter_explores_onward_along_where_the_gripper_went(tmp_pa
         run("--json", "infer", "--session", s, *onward, f"--gripper={gripper}", "--moved", "true").stdout
     )
     assert along(second, went) >= math.sqrt(0.5) - 1e-6 and second["predicted_aot"] == 1, second
+
+    def long_motion():
+        return json.loads((tmp_path / "session" / "session.json").read_text())["long_motion"]
+
+    assert all(abs(a - b) < 1e-4 for a, b in zip(long_motion(), went)), long_motion()
+    # A move that stalled: the session keeps the last long motion (goal45 reads it).
+    run("--json", "infer", "--session", s, *onward, f"--gripper={gripper}", "--moved", "false")
+    assert all(abs(a - b) < 1e-4 for a, b in zip(long_motion(), went)), long_motion()
     for extra, code, says in [
         (["--grasp", "48,64", "--motion", "1,2"], 2, "--motion takes x,y,z"),
         (["--grasp", "48,64", "--reference", str(tmp_path / "f/color.png"), "--reference-depth",

@@ -630,7 +630,7 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         pixel_small,
         &[],
         inputs.previous,
-        inputs.motion,
+        (inputs.motion, None),
         &mut rng,
     )?;
     outln!("{out}");
@@ -646,7 +646,7 @@ pub(crate) fn decide(
     pixel_small: (usize, usize),
     banned: &[Vector3<f32>],
     previous: Option<Vector3<f32>>,
-    motion: Option<Vector3<f32>>,
+    (motion, long_motion): (Option<Vector3<f32>>, Option<Vector3<f32>>),
     rng: &mut rand_chacha::ChaCha8Rng,
 ) -> Result<serde_json::Value> {
     let mode = inputs.mode();
@@ -662,6 +662,7 @@ pub(crate) fn decide(
         mode,
         joint: joint.as_ref().map(|j| &j.estimate),
         motion,
+        long_motion,
     };
     let model = &inputs.model;
     let Some(r) = inputs

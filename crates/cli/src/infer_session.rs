@@ -39,6 +39,11 @@ struct State {
     /// Sessions written before it read as unknown.
     #[serde(default)]
     gripper: Option<[f32; 3]>,
+    /// How the gripper went over the last move that carried it more than
+    /// 2 cm (world frame), which goal45 reads after moves that stalled.
+    /// Sessions written before it read as none.
+    #[serde(default)]
+    long_motion: Option<[f32; 3]>,
 }
 
 fn state_error(dir: &Path, what: impl std::fmt::Display) -> anyhow::Error {
@@ -108,7 +113,7 @@ fn start(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
         }
         let reference = inputs.reference.as_ref().unwrap_or(&inputs.obs);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
-        let out = decide(inputs, reference, pixel, &[], None, None, &mut rng)?;
+        let out = decide(inputs, reference, pixel, &[], None, (None, None), &mut rng)?;
         let (r, c) = inputs.to_full(pixel);
         let gripper = inputs.full.view().point_in_world(r, c);
         let state = State {
@@ -124,6 +129,7 @@ fn start(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
             previous: None,
             last: direction_of(&out),
             gripper: gripper.map(|g| [g.x, g.y, g.z]),
+            long_motion: None,
         };
         save(dir, &state)?;
         print(out, dir, &state)
@@ -216,6 +222,7 @@ fn next(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
     let mut memory = EpisodeMemory::from_parts(
         state.banned.iter().map(|d| Vector3::from(*d)).collect(),
         state.previous.map(Vector3::from),
+        state.long_motion.map(Vector3::from),
     );
     if let (Some(last), Some(moved)) = (state.last, a.moved) {
         memory.record(Vector3::from(last), moved);
@@ -258,7 +265,7 @@ fn next(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
         pixel,
         memory.banned(),
         memory.previous(),
-        memory.motion(),
+        (memory.motion(), memory.long_motion()),
         &mut rng,
     )?;
     state.steps += 1;
@@ -266,6 +273,7 @@ fn next(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
     state.previous = memory.previous().map(|d| [d.x, d.y, d.z]);
     state.last = direction_of(&out);
     state.gripper = gripper.map(|g| [g.x, g.y, g.z]);
+    state.long_motion = memory.long_motion().map(|m| [m.x, m.y, m.z]);
     save(dir, &state)?;
     print(out, dir, &state)
 }

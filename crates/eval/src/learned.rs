@@ -174,6 +174,7 @@ impl Policy for LearnedPolicy {
             mode,
             joint: self.joint.as_ref(),
             motion: self.memory.motion(),
+            long_motion: self.memory.long_motion(),
         };
         let mut out = self.policy.directions(
             std::slice::from_ref(&input),

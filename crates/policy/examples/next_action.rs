@@ -44,6 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         mode: Mode::Explore,
         joint: None,
         motion: None,
+        long_motion: None,
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let decision = policy

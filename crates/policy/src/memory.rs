@@ -1,9 +1,11 @@
 //! What a learned policy carries from one move to the next within an
 //! episode: the moves that moved nothing (not tried again until a move
-//! does), the previous move (for the `prev90` filter) and how far the
-//! gripper itself went over it (for `goal45` and `onward45`). One rule for
+//! does), the previous move (for the `prev90` filter), how far the
+//! gripper itself went over it (for `goal45` and `onward45`) and over the
+//! last move that carried it (for `goal45` after a stall). One rule for
 //! the benchmark's policy, `umpnet infer --session` and the Python
 //! `Policy.act`.
+use crate::policy::MOTION_MIN_M;
 use nalgebra::Vector3;
 
 /// The memory of one episode; `clear` at its start.
@@ -15,6 +17,8 @@ pub struct EpisodeMemory {
     gripper: Option<Vector3<f32>>,
     /// Where it is now less where it was then.
     motion: Option<Vector3<f32>>,
+    /// The last `motion` longer than [`MOTION_MIN_M`].
+    long_motion: Option<Vector3<f32>>,
 }
 
 impl EpisodeMemory {
@@ -24,6 +28,7 @@ impl EpisodeMemory {
         self.previous = None;
         self.gripper = None;
         self.motion = None;
+        self.long_motion = None;
     }
 
     /// After a move along `direction`: one that moved the part lifts every
@@ -37,14 +42,20 @@ impl EpisodeMemory {
         self.previous = Some(direction);
     }
 
-    /// A memory as saved elsewhere (`banned` and `previous` as they were):
-    /// a robot loop's session between calls.
-    pub fn from_parts(banned: Vec<Vector3<f32>>, previous: Option<Vector3<f32>>) -> Self {
+    /// A memory as saved elsewhere (`banned`, `previous` and
+    /// [`Self::long_motion`] as they were): a robot loop's session between
+    /// calls.
+    pub fn from_parts(
+        banned: Vec<Vector3<f32>>,
+        previous: Option<Vector3<f32>>,
+        long_motion: Option<Vector3<f32>>,
+    ) -> Self {
         Self {
             banned,
             previous,
             gripper: None,
             motion: None,
+            long_motion: long_motion.filter(|m| m.iter().all(|v| v.is_finite())),
         }
     }
 
@@ -55,9 +66,13 @@ impl EpisodeMemory {
         if !point.iter().all(|v| v.is_finite()) {
             self.gripper = None;
             self.motion = None;
+            self.long_motion = None;
             return;
         }
         self.motion = self.gripper.map(|before| point - before);
+        if let Some(m) = self.motion.filter(|m| m.norm() > MOTION_MIN_M) {
+            self.long_motion = Some(m);
+        }
         self.gripper = Some(point);
     }
 
@@ -70,6 +85,13 @@ impl EpisodeMemory {
     /// (world frame, metres); None before the second.
     pub fn motion(&self) -> Option<Vector3<f32>> {
         self.motion
+    }
+
+    /// How the gripper went over the last move that carried it more than
+    /// [`MOTION_MIN_M`]: [`Self::motion`] when the last move did, else the
+    /// move's before the ones that stalled; None before any did.
+    pub fn long_motion(&self) -> Option<Vector3<f32>> {
+        self.long_motion
     }
 
     /// The directions not to choose again.
@@ -120,5 +142,38 @@ mod tests {
         m.gripper_at(Vector3::new(0.2, 0.2, 0.1));
         m.clear();
         assert_eq!((m.motion(), m.gripper()), (None, None));
+    }
+
+    #[test]
+    fn the_long_motion_outlasts_moves_that_stalled() {
+        let mut m = EpisodeMemory::default();
+        m.gripper_at(Vector3::zeros());
+        m.gripper_at(Vector3::new(0.01, 0.0, 0.0));
+        assert_eq!(m.long_motion(), None, "a 1 cm motion is no long one");
+        m.gripper_at(Vector3::new(0.11, 0.0, 0.0));
+        let went = Vector3::new(0.1, 0.0, 0.0);
+        assert!((m.long_motion().unwrap() - went).norm() < 1e-6);
+        // Two moves that stalled: the motion is short, the long one stays.
+        m.gripper_at(Vector3::new(0.115, 0.0, 0.0));
+        m.gripper_at(Vector3::new(0.115, 0.005, 0.0));
+        assert!(m.motion().unwrap().norm() < MOTION_MIN_M);
+        assert!((m.long_motion().unwrap() - went).norm() < 1e-6);
+        m.gripper_at(Vector3::new(0.115, 0.105, 0.0));
+        assert!((m.long_motion().unwrap() - Vector3::new(0.0, 0.1, 0.0)).norm() < 1e-6);
+        // A pose that is not finite forgets it, and so does a new episode
+        // or a saved one that is not finite.
+        m.gripper_at(Vector3::new(f32::NAN, 0.0, 0.0));
+        assert_eq!(m.long_motion(), None);
+        m.gripper_at(Vector3::zeros());
+        m.gripper_at(Vector3::new(0.0, 0.0, 0.1));
+        m.clear();
+        assert_eq!(m.long_motion(), None);
+        let saved = EpisodeMemory::from_parts(vec![], None, Some(went));
+        assert_eq!(saved.long_motion(), Some(went));
+        let bad = Vector3::new(f32::INFINITY, 0.0, 0.0);
+        assert_eq!(
+            EpisodeMemory::from_parts(vec![], None, Some(bad)).long_motion(),
+            None
+        );
     }
 }

@@ -41,6 +41,12 @@ pub struct DecisionInput<'a> {
     /// which `goal45` and `onward45` read; None before the second decision
     /// or where the caller does not know its gripper's pose.
     pub motion: Option<Vector3<f32>>,
+    /// How the gripper went over the last move that carried it more than
+    /// [`MOTION_MIN_M`] ([`crate::memory::EpisodeMemory::long_motion`]):
+    /// `motion` itself, or after moves that stalled, the one before them,
+    /// which `goal45` reads; None before one or where the caller does not
+    /// know its gripper's pose.
+    pub long_motion: Option<Vector3<f32>>,
 }
 
 /// A gripper motion over one move shorter than this says nothing about
@@ -54,6 +60,16 @@ impl DecisionInput<'_> {
         self.motion
             .filter(|m| m.norm() > MOTION_MIN_M)
             .and_then(|m| m.try_normalize(1e-6))
+    }
+
+    /// [`Self::went`], or after moves that stalled, the direction of the
+    /// last one that carried the gripper.
+    fn went_last(&self) -> Option<Vector3<f32>> {
+        self.went().or_else(|| {
+            self.long_motion
+                .filter(|m| m.norm() > MOTION_MIN_M)
+                .and_then(|m| m.try_normalize(1e-6))
+        })
     }
 }
 
@@ -564,7 +580,10 @@ fn joint_line(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
 /// The `goal45` filter's rule: toward where the goal frame shows the part
 /// that the current frame does not ([`crate::goal_shift::change`]), along
 /// the gripper's own last motion where that agrees (the frames' shift is a
-/// hinge's chord; the gripper's motion follows its arc). Where the goal
+/// hinge's chord; the gripper's motion follows its arc). After moves that
+/// stalled, the last motion that carried the gripper still stands: the
+/// chord runs up to half the angle left off the arc, and a part far from
+/// its goal stalled again and again in a cone about it. Where the goal
 /// frame does not show the part's new place, onward along the last move if
 /// it moved the part, else deeper along the goal camera's rays through the
 /// part (where hidden places lie); with nothing changed, the heads choose.
@@ -572,7 +591,7 @@ fn goal_way(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
     // The change's unit shift, and whether it reads a hidden goal.
     let change = crate::goal_shift::change(&inp.observation, &inp.reference, gripper)
         .and_then(|c| Some((c.shift.try_normalize(1e-6)?, c.hidden)));
-    let went = inp.went();
+    let went = inp.went_last();
     let seen = change
         .filter(|&(_, hidden)| !hidden)
         .map(|(way, _)| went.filter(|g| g.dot(&way) > 0.0).unwrap_or(way));

@@ -182,6 +182,7 @@ fn decide_at(
             mode,
             joint: None,
             motion: None,
+            long_motion: None,
         })
         .collect();
     let mut rngs: Vec<ChaCha8Rng> = (0..obs.len())
@@ -327,6 +328,7 @@ fn the_inverse_baseline_acts_on_its_regressed_direction_in_the_goal_task_only() 
         mode: Mode::Explore,
         joint: None,
         motion: None,
+        long_motion: None,
     };
     let err = policy.directions(&[input], &mut rngs).err().unwrap();
     assert!(
@@ -349,6 +351,7 @@ fn explore<'a>(
         mode: Mode::Explore,
         joint: None,
         motion: None,
+        long_motion: None,
     }
 }
 
@@ -640,10 +643,11 @@ fn the_goal45_filter_follows_the_grippers_own_motion_where_it_agrees_with_the_fr
     // The frames' shift is +x; the gripper's last motion says which way
     // along it the part gives, when it went far enough to say.
     let (now, goal) = (panel(&policy, 0.0, 1.2), panel(&policy, 0.25, 1.2));
-    let kept = |motion: Vector3<f32>| {
+    let kept = |motion: Vector3<f32>, long_motion: Option<Vector3<f32>>| {
         let input = DecisionInput {
             mode: Mode::Goal,
             motion: Some(motion),
+            long_motion,
             ..explore(&now, &goal, pixel)
         };
         let r = policy
@@ -658,19 +662,26 @@ fn the_goal45_filter_follows_the_grippers_own_motion_where_it_agrees_with_the_fr
     };
     let cone = std::f32::consts::FRAC_1_SQRT_2;
     let arc = Vector3::new(1.0, 0.0, -1.0).normalize();
-    for (motion, way) in [
+    let back = Vector3::new(-1.0, 0.0, -1.0).normalize();
+    for (motion, long_motion, way) in [
         // Agrees with the shift: its own direction is the way.
-        (arc * 0.1, arc),
+        (arc * 0.1, Some(arc * 0.1), arc),
         // Went against the frames (past the goal): the frames' shift.
-        (
-            Vector3::new(-1.0, 0.0, -1.0).normalize() * 0.1,
-            Vector3::x(),
-        ),
-        // Within 2 cm, it says nothing: the frames' shift.
-        (arc * 0.015, Vector3::x()),
+        (back * 0.1, Some(back * 0.1), Vector3::x()),
+        // Within 2 cm, with no motion before it, it says nothing: the
+        // frames' shift.
+        (arc * 0.015, None, Vector3::x()),
+        // A move that stalled after one that went along the arc: the arc
+        // still stands, where it agrees with the frames.
+        (arc * 0.015, Some(arc * 0.1), arc),
+        (arc * 0.015, Some(back * 0.1), Vector3::x()),
     ] {
-        for (d, k) in kept(motion) {
-            assert_eq!(k, d.dot(&way) >= cone, "motion {motion:?}: {d:?}");
+        for (d, k) in kept(motion, long_motion) {
+            assert_eq!(
+                k,
+                d.dot(&way) >= cone,
+                "motion {motion:?} after {long_motion:?}: {d:?}"
+            );
         }
     }
 }
@@ -739,6 +750,7 @@ fn the_onward45_filter_explores_onward_along_where_the_gripper_went() {
     let decide = |motion: Option<Vector3<f32>>| {
         let input = DecisionInput {
             motion,
+            long_motion: None,
             ..explore(&obs, &obs, pixel)
         };
         policy

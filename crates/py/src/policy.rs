@@ -193,6 +193,7 @@ impl Policy {
                 mode,
                 joint: None,
                 motion: None,
+                long_motion: None,
             })
             .collect();
         let mut rngs: Vec<rand_chacha::ChaCha8Rng> = (0..b)
@@ -227,7 +228,8 @@ impl Policy {
     /// the move this last returned moved the part (a move that did not is
     /// not tried again until one does); `gripper` is where the gripper is now
     /// (world x, y, z, from its own pose), from which the `goal45` and
-    /// `onward45` filters read how it went over the last move. A dict as
+    /// `onward45` filters read how it went over the last move (`goal45`,
+    /// after moves that stalled, over the last one that carried it). A dict as
     /// `direction_batch` gives.
     #[pyo3(signature = (image, reference, pixel, mode="explore", moved=None, gripper=None))]
     #[expect(clippy::too_many_arguments, reason = "Python keyword arguments")]
@@ -278,6 +280,7 @@ impl Policy {
             mode,
             joint: self.joint.as_ref(),
             motion: self.memory.motion(),
+            long_motion: self.memory.long_motion(),
         };
         let (inner, rng) = (&self.inner, &mut self.rng);
         let mut out = py
