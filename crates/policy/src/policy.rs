@@ -439,7 +439,7 @@ impl UmpnetPolicy {
                     DirectionFilter::Joint45 => joint_line(inp, gripper),
                     DirectionFilter::Goal45 => goal_way(inp, gripper),
                     DirectionFilter::Onward45 => inp.went().map_or_else(
-                        || joint_line(inp, gripper),
+                        || onward_after_stall(inp, gripper, (r, c)),
                         |way| Keep::Way {
                             way,
                             aot: 1,
@@ -575,6 +575,62 @@ fn joint_line(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
     inp.joint
         .and_then(|j| j.motion_at(gripper))
         .map_or(Keep::All, Keep::Line)
+}
+
+/// The `onward45` filter's rule where the last move did not carry the
+/// gripper. Each line in turn, the JointNet's, then the grasped surface's
+/// normal (a lid or a handle turns out of its own face): its unstalled
+/// side, where moves since the last that moved the part stalled on one
+/// (a limit, or a line read backwards); the next line where they stalled
+/// on both; the heads choose where every line has, and before any stall
+/// where the JointNet read no joint.
+fn onward_after_stall(
+    inp: &DecisionInput<'_>,
+    gripper: Vector3<f32>,
+    (r, c): (usize, usize),
+) -> Keep {
+    let stalled = |v: Vector3<f32>| {
+        inp.banned
+            .iter()
+            .any(|b| b.dot(&v) >= std::f32::consts::FRAC_1_SQRT_2)
+    };
+    let line = joint_line(inp, gripper);
+    if inp.banned.is_empty() {
+        return line;
+    }
+    if let Keep::Line(v) = line {
+        match (stalled(v), stalled(-v)) {
+            (false, false) => return Keep::Line(v),
+            (true, true) => {}
+            (plus, _) => {
+                return Keep::Way {
+                    way: if plus { -v } else { v },
+                    aot: 1,
+                    exact: false,
+                };
+            }
+        }
+    }
+    // The current frame shows the gripper over the grasp; exploring, the
+    // reference is the frame the grasp was chosen on, where the face shows.
+    let normal = Vector3::new(
+        inp.reference[[r, c, 6]],
+        inp.reference[[r, c, 7]],
+        inp.reference[[r, c, 8]],
+    );
+    // Pulling off the face first: what suction does best.
+    if let Some(n) = normal.try_normalize(1e-6) {
+        for way in [n, -n] {
+            if !stalled(way) {
+                return Keep::Way {
+                    way,
+                    aot: 1,
+                    exact: true,
+                };
+            }
+        }
+    }
+    Keep::All
 }
 
 /// The `goal45` filter's rule: toward where the goal frame shows the part

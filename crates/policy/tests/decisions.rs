@@ -793,3 +793,70 @@ fn the_onward45_filter_explores_onward_along_where_the_gripper_went() {
         .unwrap();
     assert!(err.to_string().contains("onward45"), "{err}");
 }
+
+#[test]
+fn after_stalls_onward45_tries_the_joints_other_side_then_the_surface_normal() {
+    use umpnet_policy::axis::JointEstimate;
+    use umpnet_policy::policy::DirectionFilter;
+    let Some(policy) = policy("joint") else {
+        return;
+    };
+    let policy = policy.with_direction_filter(DirectionFilter::Onward45);
+    let now = observation(&policy, 17);
+    let (h, w) = policy.resolution();
+    let pixel = (h / 2, w / 2);
+    // The episode's first frame shows the grasped face turned to -z; the
+    // current one shows whatever covers the grasp (the gripper's own side).
+    let mut first = now.clone();
+    let normal = Vector3::new(0.0, 0.0, -1.0);
+    for (k, v) in normal.iter().enumerate() {
+        first[[pixel.0, pixel.1, 6 + k]] = *v;
+    }
+    let slide = JointEstimate::Prismatic {
+        axis: [0.0, 1.0, 0.0],
+    };
+    let line = Vector3::new(0.0, 1.0, 0.0);
+    let cone = std::f32::consts::FRAC_1_SQRT_2;
+    let decide = |joint: Option<&JointEstimate>, banned: &[Vector3<f32>]| {
+        let input = DecisionInput {
+            joint,
+            banned,
+            // The last move stalled: the gripper went 1 cm.
+            motion: Some(line * 0.01),
+            ..explore(&now, &first, pixel)
+        };
+        policy
+            .directions(&[input], &mut [ChaCha8Rng::seed_from_u64(5)])
+            .unwrap()
+            .remove(0)
+    };
+    // Before any stall: either way along the joint's line.
+    let r = decide(Some(&slide), &[]);
+    assert!(r.direction.unwrap().dot(&line).abs() >= cone, "{r:?}");
+    // One side stalled (a limit): the other side, forward.
+    for side in [1.0f32, -1.0] {
+        let stalled = [Vector3::new(0.2, side, 0.1).normalize()];
+        let r = decide(Some(&slide), &stalled);
+        for (d, s) in r.candidates.iter().zip(&r.scores) {
+            if -side * d.dot(&line) >= cone {
+                assert_eq!(s.aot, 1, "{d:?} {s:?}");
+            } else {
+                assert_eq!((s.distance, s.aot), (-1.0, 0), "{d:?}");
+            }
+        }
+        assert!(-side * r.direction.unwrap().dot(&line) >= cone, "{r:?}");
+    }
+    // Both sides stalled, or no joint read: off the face along its normal,
+    // exactly, then into it, then wherever the heads choose.
+    let both = [line, -line];
+    for (joint, banned) in [(Some(&slide), &both[..]), (None, &[-line][..])] {
+        let r = decide(joint, banned);
+        assert!((r.direction.unwrap() - normal).norm() < 1e-5, "{r:?}");
+        let more: Vec<Vector3<f32>> = banned.iter().copied().chain([normal]).collect();
+        let r = decide(joint, &more);
+        assert!((r.direction.unwrap() + normal).norm() < 1e-5, "{r:?}");
+        let all: Vec<Vector3<f32>> = more.iter().copied().chain([-normal]).collect();
+        let r = decide(joint, &all);
+        assert!(r.scores.iter().all(|s| s.distance >= 0.0), "{r:?}");
+    }
+}
