@@ -98,7 +98,8 @@ def test_the_prev90_filter_never_turns_back_on_the_last_move(tmp_path):
 
 
 def test_the_grasp_rule_is_the_packages_unless_named_and_eval_records_it(tmp_path, fixture_package):
-    """The shipped package weights its grasp by the JointNet's movable mask;
+    """The shipped package weights its grasp by the JointNet's movable mask
+    and the lever arm about a hinge;
     `--grasp-rule affordance` (the paper's) picks other pixels in some
     scenes, eval records the override, and a package without a JointNet
     refuses the movable rule by name."""
@@ -108,8 +109,9 @@ def test_the_grasp_rule_is_the_packages_unless_named_and_eval_records_it(tmp_pat
         return json.loads(run(*args, "--seed", str(seed), *flags).stdout)["pixel"]
 
     assert any(pixel(s) != pixel(s, "--grasp-rule", "affordance") for s in range(6))
+    assert any(pixel(s) != pixel(s, "--grasp-rule", "affordance_times_movable") for s in range(6))
     for s in range(2):
-        assert pixel(s) == pixel(s, "--grasp-rule", "affordance_times_movable")
+        assert pixel(s) == pixel(s, "--grasp-rule", "affordance_times_movable_lever")
     ev = ["eval", "--categories", "Box", "--episodes-per-category", "1", "--policies", "umpnet"]
     run(*ev, "--grasp-rule", "affordance", "--out", str(tmp_path / "paper"))
     assert json.loads((tmp_path / "paper" / "results.json").read_text())["summary"]["grasp_rule"] == "affordance"
@@ -1098,15 +1100,16 @@ def test_a_package_with_a_joint_net_reports_the_grasped_parts_joint_from_one_fra
 
 def test_the_goal45_filter_reads_the_way_to_the_goal_off_the_frames():
     """goal45 keeps the moves toward where the goal frame shows the part: on
-    a door the shipped package's Arrow-of-Time head turns the wrong way
-    (Door, seed 7), the filter reaches the goal; exploring it is refused by name."""
+    a door (Door, seed 7) the shipped package's own heads are still far from
+    the goal after six moves, the filter reaches it; exploring it is refused
+    by name."""
     model = str(ROOT / "models" / "umpnet-small")
     args = ("--json", "goal", "--category", "Door", "--seed", "7", "--policy", "umpnet", "--model", model,
             "--steps", "6")  # fmt: skip
     plain = json.loads(run(*args).stdout)
     filtered = json.loads(run(*args, "--direction-filter", "goal45").stdout)
     assert plain["valid_position"] and filtered["valid_position"]
-    assert not plain["metrics"]["success"] and plain["metrics"]["normalized_distance"] > 0.5, plain["metrics"]
+    assert not plain["metrics"]["success"] and plain["metrics"]["normalized_distance"] > 0.3, plain["metrics"]
     assert filtered["metrics"]["success"], filtered["metrics"]
     p = run("explore", "--category", "Door", "--seed", "5", "--policy", "umpnet", "--model", model,
             "--direction-filter", "goal45", "--steps", "2", check=False)  # fmt: skip

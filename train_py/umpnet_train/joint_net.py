@@ -353,7 +353,7 @@ def export(checkpoint: Path, package: Path) -> None:
 def export_joint(model: JointNet, cfg: JointConfig, package: Path, provenance: dict | None = None) -> None:
     """Writes `joint.onnx` into a model package (its input size must match),
     checked against PyTorch, and names it in model.json's `files.joint`; the
-    package then grasps by `affordance_times_movable`."""
+    package then grasps by `affordance_times_movable_lever`."""
     import onnxruntime as ort
 
     meta_path = package / "model.json"
@@ -383,8 +383,9 @@ def export_joint(model: JointNet, cfg: JointConfig, package: Path, provenance: d
         raise ValueError(f"{path}: ONNX differs from PyTorch by {worst}")
     meta["files"]["joint"] = "joint.onnx"
     # The runtime then grasps where the PositionNet and the JointNet's
-    # movable mask agree (model.json `grasp`, docs/model-package.md).
-    meta["grasp"] = "affordance_times_movable"
+    # movable mask agree, away from a hinge's axis (model.json `grasp`,
+    # docs/model-package.md).
+    meta["grasp"] = "affordance_times_movable_lever"
     meta["joint"] = {
         "outputs": list(OUTPUTS),
         "config": asdict(cfg),

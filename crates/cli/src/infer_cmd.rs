@@ -57,8 +57,9 @@ pub struct InferArgs {
     #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::DirectionFilter>(crate::DIRECTION_FILTERS))]
     pub direction_filter: Option<umpnet_policy::policy::DirectionFilter>,
     /// A learned policy's grasp rule instead of its package's (model.json
-    /// `grasp`): affordance (the paper: the PositionNet's best pixel) or
-    /// affordance_times_movable (weighted by the JointNet's movable mask).
+    /// `grasp`): affordance (the paper: the PositionNet's best pixel),
+    /// affordance_times_movable (weighted by the JointNet's movable mask) or
+    /// affordance_times_movable_lever (and by the lever arm about a hinge).
     #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
     pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]

@@ -163,7 +163,11 @@ pub const PHYSICS: &[&str] = &["reference", "ideal"];
 pub const PROTOCOLS: &[&str] = &["paper", "strict"];
 pub const TASKS: &[&str] = &["exploration|explore", "goal"];
 pub const RENDERERS: &[&str] = &["auto", "wgpu|gpu", "cpu"];
-pub const GRASP_RULES: &[&str] = &["affordance", "affordance_times_movable"];
+pub const GRASP_RULES: &[&str] = &[
+    "affordance",
+    "affordance_times_movable",
+    "affordance_times_movable_lever",
+];
 pub const DIRECTION_FILTERS: &[&str] = &[
     "none", "normal90", "prev90", "joint45", "goal45", "onward45",
 ];
@@ -407,6 +411,14 @@ mod choice_tests {
                 DIRECTION_FILTERS.contains(&f.name()),
                 "{} is not offered",
                 f.name()
+            );
+        }
+        all_parse::<umpnet_policy::policy::GraspRule>(GRASP_RULES);
+        for g in umpnet_policy::policy::GraspRule::ALL {
+            assert!(
+                GRASP_RULES.contains(&g.name()),
+                "{} is not offered",
+                g.name()
             );
         }
         for p in PhysicsProfile::ALL {

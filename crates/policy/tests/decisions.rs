@@ -288,7 +288,15 @@ fn the_normal90_filter_scores_pushes_into_the_surface_as_no_effect() {
     for (k, v) in [-1.0, 0.0, 0.0].into_iter().enumerate() {
         obs[[h - 1, w - 1, 6 + k]] = v;
     }
-    let r = decide_at(&policy, &[obs], &[Mode::Explore], &[], 8, (h + 2, w + 3)).remove(0);
+    let r = decide_at(
+        &policy,
+        &[obs.clone()],
+        &[Mode::Explore],
+        &[],
+        8,
+        (h + 2, w + 3),
+    )
+    .remove(0);
     for (d, s) in r.candidates.iter().zip(&r.scores) {
         if d.x > 0.0 {
             assert_eq!((s.distance, s.aot), (-1.0, 0), "{d:?}");
@@ -302,6 +310,20 @@ fn the_normal90_filter_scores_pushes_into_the_surface_as_no_effect() {
     // Nothing left that moves forward: exploration takes the largest distance.
     let chosen = r.direction.unwrap();
     assert!(chosen.x < -0.9, "{chosen:?}");
+    // Exploring, the face is read from the reference (the frame the grasp
+    // was chosen on), not from the current frame, which shows the gripper
+    // there: the same decision whatever the current frame's normal.
+    let mut now = obs.clone();
+    for (k, v) in [1.0, 0.0, 0.0].into_iter().enumerate() {
+        now[[h - 1, w - 1, 6 + k]] = v;
+    }
+    let input = explore(&now, &obs, (h + 2, w + 3));
+    let again = policy
+        .directions(&[input], &mut [ChaCha8Rng::seed_from_u64(8)])
+        .unwrap()
+        .remove(0);
+    assert_eq!(again.direction, r.direction);
+    assert_eq!(again.scores, r.scores);
 }
 
 #[test]
@@ -729,6 +751,29 @@ fn the_movable_grasp_weights_the_affordance_by_the_joint_nets_mask() {
     let fresh = joint.frame_joint(obs.view(), chosen.pixel).unwrap();
     assert!(kept.is_some());
     assert_eq!(kept, fresh);
+    // The lever rule also weighs each pixel by its lever arm: the fixture's
+    // JointNet reads a slide (hinge logit -5) with no arm, so by the hinge
+    // probability's complement, and the grasp stays where it was.
+    let lever = joint
+        .clone()
+        .with_grasp(GraspRule::AffordanceTimesMovableLever)
+        .unwrap();
+    let levered = lever.position(obs.view(), None).unwrap();
+    let slide = 1.0 - 1.0 / (1.0 + 5.0f32.exp());
+    for ((r, c), &a) in aff.indexed_iter() {
+        let got = levered.affordance[[r, c]];
+        assert!(
+            (got - a * movable * slide).abs() < 1e-5,
+            "({r}, {c}): {got} vs {a} x {movable} x {slide}"
+        );
+    }
+    assert_eq!(levered.pixel, chosen.pixel);
+    assert!(
+        plain
+            .clone()
+            .with_grasp(GraspRule::AffordanceTimesMovableLever)
+            .is_err()
+    );
     // Under the paper's rule the map is the PositionNet's own.
     let paper = joint.with_grasp(GraspRule::Affordance).unwrap();
     let choice = paper.position(obs.view(), None).unwrap();

@@ -231,7 +231,7 @@ def test_grasp_rule_replaces_the_packages_and_the_movable_one_needs_a_joint_net(
     edited = tmp_path / "edited"
     shutil.copytree(shipped, edited)
     meta = json.loads((edited / "model.json").read_text())
-    assert meta["grasp"] == "affordance_times_movable"
+    assert meta["grasp"] == "affordance_times_movable_lever"
     meta["grasp"] = "affordance"
     (edited / "model.json").write_text(json.dumps(meta))
     by_meta, by_arg = umpnet.Policy(str(edited)), umpnet.Policy(str(shipped), grasp_rule="affordance")

@@ -169,27 +169,41 @@ pub enum GraspRule {
     /// Beyond the paper: the PositionNet's probability times the JointNet's
     /// probability that the pixel is on a movable part (needs `files.joint`).
     AffordanceTimesMovable,
+    /// Beyond the paper: [`Self::AffordanceTimesMovable`] times the grasp's
+    /// worth for its lever arm about a hinge, as the JointNet reads it
+    /// ([`crate::frame_joint::lever_weight`]; needs `files.joint`).
+    AffordanceTimesMovableLever,
 }
 
 impl GraspRule {
     /// Every rule, in the order the docs list them.
-    pub const ALL: [Self; 2] = [Self::Affordance, Self::AffordanceTimesMovable];
+    pub const ALL: [Self; 3] = [
+        Self::Affordance,
+        Self::AffordanceTimesMovable,
+        Self::AffordanceTimesMovableLever,
+    ];
 
     /// The name in model.json's `grasp` and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Self::Affordance => "affordance",
             Self::AffordanceTimesMovable => "affordance_times_movable",
+            Self::AffordanceTimesMovableLever => "affordance_times_movable_lever",
         }
+    }
+
+    /// Whether the rule reads the JointNet's fields.
+    pub fn reads_joint(self) -> bool {
+        self != Self::Affordance
     }
 
     /// Whether a package with (`has_joint`) or without a JointNet can pick
     /// its grasp by this rule; the reason when it cannot. The one statement
     /// of the rule that model.json, the policy and the CLI all check.
     pub fn check_joint(self, has_joint: bool) -> std::result::Result<(), String> {
-        if self == Self::AffordanceTimesMovable && !has_joint {
+        if self.reads_joint() && !has_joint {
             return Err(format!(
-                "the `{}` grasp weights the grasp by the JointNet's movable mask, and the \
+                "the `{}` grasp weights the grasp by the JointNet's fields, and the \
                  package names no JointNet (model.json `files.joint`; use `affordance`, or add \
                  one with `python -m umpnet_train.joint_net --export`)",
                 self.name()
@@ -207,7 +221,8 @@ impl std::str::FromStr for GraspRule {
             .find(|g| g.name() == s)
             .ok_or_else(|| {
                 PolicyError::Input(format!(
-                    "unknown grasp rule `{s}`; expected affordance or affordance_times_movable"
+                    "unknown grasp rule `{s}`; expected affordance, affordance_times_movable \
+                     or affordance_times_movable_lever"
                 ))
             })
     }

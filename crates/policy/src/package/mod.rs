@@ -392,8 +392,18 @@ impl ModelPackage {
                 .try_extract_array::<f32>()
                 .map_err(|e| ort_err(&file, e))?
                 .to_owned()
-                .into_dimensionality()
+                .into_dimensionality::<ndarray::Ix4>()
                 .map_err(|e| ort_err(&file, e))?;
+            let (n, h, w, _) = observation.dim();
+            let want = [n, crate::frame_joint::JOINT_CHANNELS, h, w];
+            if a.shape() != want {
+                return Err(PolicyError::Runtime(format!(
+                    "{}: `joint_fields` has shape {:?}, expected {want:?} (batch, channels, \
+                     height, width)",
+                    file.display(),
+                    a.shape()
+                )));
+            }
             finite(a, &file, "joint_fields").map(Some)
         })
     }

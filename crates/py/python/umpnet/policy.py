@@ -52,8 +52,8 @@ class Policy(_Policy):
     ``direction_filter`` replaces the package's (``none``, ``normal90``,
     ``prev90``, ``joint45``, ``goal45`` or ``onward45``), as ``--direction-filter`` does
     on the command line; ``grasp_rule`` replaces the package's ``grasp``
-    (``affordance``, the paper's, or ``affordance_times_movable``), as
-    ``--grasp-rule`` does.
+    (``affordance``, the paper's, ``affordance_times_movable`` or
+    ``affordance_times_movable_lever``), as ``--grasp-rule`` does.
     """
 
     def __new__(
