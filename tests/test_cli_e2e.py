@@ -1118,7 +1118,8 @@ def test_the_goal45_filter_reads_the_way_to_the_goal_off_the_frames():
 
 def test_the_onward45_filter_explores_onward_along_where_the_gripper_went(tmp_path):
     """onward45 keeps the moves within 45 degrees of the gripper's own last
-    motion and calls them forward: from --motion in one call, from --gripper
+    motion (turned by less than that on a hinge the JointNet reads, for these
+    motions) and calls them forward: from --motion in one call, from --gripper
     across a session's calls; a motion the part stopped within 2 cm says
     nothing; a goal run and a malformed motion are refused by name."""
     model = str(ROOT / "models" / "umpnet-small")

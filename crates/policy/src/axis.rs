@@ -38,7 +38,63 @@ impl JointEstimate {
         };
         (v.norm() > 1e-6 && v.iter().all(|x| x.is_finite())).then(|| v.normalize())
     }
+
+    /// The way on for a point that went `motion` over its last move to
+    /// reach `point` (world frame): the last move carried along with the
+    /// part. On a slide that is the same way; on a hinge, the last chord
+    /// turned about the axis by the angle it spanned, the next chord of
+    /// the same length (a move along the last chord leaves the circle,
+    /// and on a short lever stalls at once). Where the motion does not fit
+    /// the hinge (it changed its distance from the axis by more than
+    /// [`ARC_FIT`] of its length, or runs along the axis), the joint is
+    /// read wrong, and the way is the motion's own. None for no motion.
+    pub fn onward(&self, point: Vector3<f32>, motion: Vector3<f32>) -> Option<Vector3<f32>> {
+        let way = motion.try_normalize(1e-6)?;
+        let Self::Revolute {
+            axis,
+            point: on_axis,
+        } = self
+        else {
+            return Some(way);
+        };
+        let Some(a) = nalgebra::Unit::try_new(Vector3::from(*axis), 1e-6) else {
+            return Some(way);
+        };
+        let from_axis = |p: Vector3<f32>| {
+            let v = p - Vector3::from(*on_axis);
+            v - a.into_inner() * a.dot(&v)
+        };
+        let (before, now) = (from_axis(point - motion), from_axis(point));
+        let fits = (now.norm() - before.norm()).abs() <= ARC_FIT * motion.norm()
+            && a.dot(&way).abs() <= ARC_FIT_ALONG_AXIS
+            && before.norm().min(now.norm()) > 1e-3;
+        if !fits {
+            return Some(way);
+        }
+        let spanned = a.dot(&before.cross(&now)).atan2(before.dot(&now));
+        let next =
+            nalgebra::Rotation3::from_axis_angle(&a, spanned.clamp(-MAX_TURN_RAD, MAX_TURN_RAD))
+                * way;
+        Some(if next.iter().all(|x| x.is_finite()) {
+            next
+        } else {
+            way
+        })
+    }
 }
+
+/// [`JointEstimate::onward`]: a motion that changed its distance from a
+/// hinge's axis by more than this share of its length is not on the
+/// hinge's circle.
+pub const ARC_FIT: f32 = 0.3;
+
+/// [`JointEstimate::onward`]: a motion whose cosine with a hinge's axis is
+/// above this is not about the axis.
+pub const ARC_FIT_ALONG_AXIS: f32 = 0.5;
+
+/// [`JointEstimate::onward`] turns a move at most this far from the last
+/// (the chords of a 0.2 m lever, the shortest, turn 0.9 rad).
+pub const MAX_TURN_RAD: f32 = 1.0;
 
 /// Angle in degrees between two axes, ignoring their sign.
 pub fn axis_angle_deg(a: &Vector3<f32>, b: &Vector3<f32>) -> f32 {
@@ -204,6 +260,58 @@ mod tests {
             None,
             "on the axis"
         );
+    }
+
+    #[test]
+    fn onward_on_a_hinge_is_the_last_chord_turned_by_the_angle_it_spanned() {
+        let hinge = JointEstimate::Revolute {
+            axis: [0.0, 0.0, 1.0],
+            point: [0.2, -0.1, 0.0],
+        };
+        let at = |t: f32| Vector3::new(0.2 + 0.3 * t.cos(), -0.1 + 0.3 * t.sin(), 0.4);
+        for (from, to) in [(0.0, 0.5), (0.5, 0.0), (1.0, 1.2), (-0.3, -1.1)] {
+            let next = hinge.onward(at(to), at(to) - at(from)).unwrap();
+            let want = (at(2.0 * to - from) - at(to)).normalize();
+            assert!(
+                (next - want).norm() < 1e-4,
+                "{from} -> {to}: {next:?} vs {want:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn onward_keeps_the_motion_on_a_slide_and_off_a_hinge_read_wrong() {
+        let m = Vector3::new(0.1, 0.02, 0.03);
+        let slide = JointEstimate::Prismatic {
+            axis: [1.0, 0.0, 0.0],
+        };
+        assert_eq!(slide.onward(Vector3::zeros(), m), Some(m.normalize()));
+        let hinge = JointEstimate::Revolute {
+            axis: [0.0, 0.0, 1.0],
+            point: [0.0, 0.0, 0.0],
+        };
+        // Straight away from the axis: not on its circle.
+        let out = Vector3::new(0.1, 0.0, 0.0);
+        let p = Vector3::new(0.5, 0.0, 0.0);
+        assert_eq!(hinge.onward(p, out), Some(Vector3::x()));
+        // Along the axis.
+        let up = Vector3::new(0.0, 0.02, 0.1);
+        let p = Vector3::new(0.0, 0.5, 0.3);
+        assert_eq!(hinge.onward(p, up), Some(up.normalize()));
+        assert_eq!(hinge.onward(p, Vector3::zeros()), None);
+    }
+
+    #[test]
+    fn onward_turns_at_most_max_turn_rad() {
+        let hinge = JointEstimate::Revolute {
+            axis: [0.0, 0.0, 1.0],
+            point: [0.0, 0.0, 0.0],
+        };
+        // Half a turn about an axis read 5 cm away.
+        let (p, m) = (Vector3::new(-0.05, 0.0, 0.0), Vector3::new(-0.1, 0.0, 0.0));
+        let next = hinge.onward(p, m).unwrap();
+        let angle = next.dot(&m.normalize()).clamp(-1.0, 1.0).acos();
+        assert!((angle - MAX_TURN_RAD).abs() < 1e-4, "{angle}");
     }
 
     #[test]

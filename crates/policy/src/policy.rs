@@ -446,8 +446,8 @@ impl UmpnetPolicy {
                     DirectionFilter::Goal45 => goal_way(inp, gripper),
                     DirectionFilter::Onward45 => inp.went().map_or_else(
                         || onward_after_stall(inp, gripper, (r, c)),
-                        |way| Keep::Way {
-                            way,
+                        |went| Keep::Way {
+                            way: along_joint(inp, gripper).unwrap_or(went),
                             aot: 1,
                             exact: true,
                         },
@@ -581,6 +581,13 @@ fn joint_line(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Keep {
     inp.joint
         .and_then(|j| j.motion_at(gripper))
         .map_or(Keep::All, Keep::Line)
+}
+
+/// The way on after the gripper's last motion brought it to `gripper`:
+/// that motion carried along with the JointNet's joint
+/// ([`crate::axis::JointEstimate::onward`]); None without a JointNet.
+fn along_joint(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Option<Vector3<f32>> {
+    inp.joint?.onward(gripper, inp.motion?)
 }
 
 /// The `onward45` filter's rule where the last move did not carry the

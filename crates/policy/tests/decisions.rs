@@ -905,3 +905,56 @@ fn after_stalls_onward45_tries_the_joints_other_side_then_the_surface_normal() {
         assert!(r.scores.iter().all(|s| s.distance >= 0.0), "{r:?}");
     }
 }
+
+#[test]
+fn onward45_on_a_hinge_turns_the_last_move_with_the_part() {
+    use umpnet_policy::axis::JointEstimate;
+    use umpnet_policy::policy::DirectionFilter;
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let policy = policy.with_direction_filter(DirectionFilter::Onward45);
+    let mut obs = observation(&policy, 19);
+    let (h, w) = policy.resolution();
+    let pixel = (h / 2, w / 2);
+    // The gripper's point now, 0.25 m from a vertical hinge.
+    let point = Vector3::new(0.1, -0.4, 0.6);
+    for (k, v) in point.iter().enumerate() {
+        obs[[pixel.0, pixel.1, k]] = *v;
+    }
+    let centre = point - Vector3::new(0.25, 0.0, 0.0);
+    let on_circle = |t: f32| centre + 0.25 * Vector3::new(t.cos(), t.sin(), 0.0);
+    // The last move turned the part by 0.6 rad to where it is now.
+    let motion = point - on_circle(-0.6);
+    let next = (on_circle(0.6) - point).normalize();
+    let decide = |joint: Option<&JointEstimate>| {
+        let input = DecisionInput {
+            joint,
+            motion: Some(motion),
+            ..explore(&obs, &obs, pixel)
+        };
+        policy
+            .directions(&[input], &mut [ChaCha8Rng::seed_from_u64(3)])
+            .unwrap()
+            .remove(0)
+            .direction
+            .unwrap()
+    };
+    let hinge = JointEstimate::Revolute {
+        axis: [0.0, 0.0, 1.0],
+        point: [centre.x, centre.y, 0.0],
+    };
+    let d = decide(Some(&hinge));
+    assert!(
+        (d - next).norm() < 1e-4,
+        "the next chord: {d:?} vs {next:?}"
+    );
+    // A slide, or no joint read: straight on.
+    let slide = JointEstimate::Prismatic {
+        axis: [0.0, 1.0, 0.0],
+    };
+    for joint in [Some(&slide), None] {
+        let d = decide(joint);
+        assert!((d - motion.normalize()).norm() < 1e-5, "{joint:?}: {d:?}");
+    }
+}
