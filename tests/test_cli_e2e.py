@@ -1036,6 +1036,48 @@ def test_infer_session_keeps_a_robot_loops_episode_across_calls(tmp_path):
     assert p.returncode == 2 and "no session yet" in p.stderr, p.stderr
 
 
+def test_infer_session_keeps_the_joint_read_where_the_grasp_was_made(tmp_path):
+    """A session reads the grasped part's joint once, on its first call's frame
+    (later frames show the gripper over the part), and every later call
+    decides with it and reports it; a session.json whose joint has no axis is
+    refused by name."""
+    model = str(ROOT / "models" / "umpnet-small")
+    for seed in ("3", "4"):
+        run(
+            "render", "--category", "Microwave", "--seed", seed, "--resolution", "96x128", "--out", str(tmp_path / seed)
+        )
+
+    def frame(seed):
+        return ["--rgb", str(tmp_path / seed / "color.png"), "--depth", str(tmp_path / seed / "depth.npy"),
+                "--camera", str(tmp_path / seed / "camera.json"), "--model", model]  # fmt: skip
+
+    s = tmp_path / "s"
+    first = json.loads(run("--json", "infer", "--session", str(s), *frame("3")).stdout)
+    assert first["joint"] is not None, first
+
+    def same(a, b):  # session.json keeps float32s; the output prints them as doubles
+        if isinstance(a, dict):
+            return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+        if isinstance(a, list):
+            return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+        return math.isclose(a, b, rel_tol=1e-6) if isinstance(a, float) else a == b
+
+    assert same(json.loads((s / "session.json").read_text())["joint"], first["joint"])
+    # The next frame is another scene: read afresh there, its joint differs.
+    grasp = ",".join(map(str, first["pixel"]))
+    there = json.loads(run("--json", "infer", *frame("4"), "--grasp", grasp).stdout)
+    assert there["joint"] != first["joint"], there
+    second = json.loads(
+        run("--json", "infer", "--session", str(s), *frame("4"), "--grasp", grasp, "--moved", "true").stdout
+    )
+    assert second["joint"] == first["joint"], second
+    state = json.loads((s / "session.json").read_text())
+    state["joint"]["estimate"]["axis"] = [0.0, 0.0, 0.0]
+    (s / "session.json").write_text(json.dumps(state))
+    p = run("infer", "--session", str(s), *frame("4"), "--grasp", grasp, check=False)
+    assert p.returncode == 2 and "session.json: joint needs a nonzero axis" in p.stderr, p.stderr
+
+
 def test_a_learned_policy_says_when_it_does_not_use_the_resolution_asked_for():
     """A learned policy sees its model's input: --resolution for another size
     gets a notice naming both, not silence; without the flag, no notice."""

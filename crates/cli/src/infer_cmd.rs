@@ -625,45 +625,62 @@ pub fn run(_ctx: &Ctx, a: &InferArgs) -> Result<()> {
         .or(inputs.initial.as_ref())
         .unwrap_or(&inputs.obs);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
-    let out = decide(
-        &inputs,
-        reference,
-        pixel_small,
-        &[],
-        inputs.previous,
-        (inputs.motion, None),
-        &mut rng,
-    )?;
+    let known = Known {
+        previous: inputs.previous,
+        motion: inputs.motion,
+        ..Known::default()
+    };
+    let (out, _) = decide(&inputs, reference, pixel_small, &known, &mut rng)?;
     outln!("{out}");
     Ok(())
 }
 
+/// What a decision knows of its episode beyond the frames: the memory's
+/// moves ([`umpnet_policy::memory::EpisodeMemory`]) and the grasped part's
+/// joint as read at the grasp.
+#[derive(Default)]
+pub(crate) struct Known<'a> {
+    pub banned: &'a [Vector3<f32>],
+    pub previous: Option<Vector3<f32>>,
+    pub motion: Option<Vector3<f32>>,
+    pub long_motion: Option<Vector3<f32>>,
+    /// The joint read from the frame the grasp was made on; None: read it
+    /// from this frame.
+    pub joint: Option<umpnet_policy::frame_joint::FrameJoint>,
+}
+
 /// One decision, as infer prints it (JSON): the grasp pixel in the full
 /// frame and its world point, the direction (None: stop) with its scores,
-/// and the grasped part's joint when the package has a JointNet.
+/// and the grasped part's joint when the package has a JointNet; with the
+/// joint, which a session keeps from its first call.
 pub(crate) fn decide(
     inputs: &Inputs,
     reference: &ndarray::Array3<f32>,
     pixel_small: (usize, usize),
-    banned: &[Vector3<f32>],
-    previous: Option<Vector3<f32>>,
-    (motion, long_motion): (Option<Vector3<f32>>, Option<Vector3<f32>>),
+    known: &Known<'_>,
     rng: &mut rand_chacha::ChaCha8Rng,
-) -> Result<serde_json::Value> {
+) -> Result<(
+    serde_json::Value,
+    Option<umpnet_policy::frame_joint::FrameJoint>,
+)> {
     let mode = inputs.mode();
-    // The joint of the grasped part from this frame alone (a package with a
-    // JointNet): reported, and read by the joint45 filter.
-    let joint = inputs.policy.frame_joint(inputs.obs.view(), pixel_small)?;
+    // The joint of the grasped part (a package with a JointNet): as read at
+    // the grasp, else from this frame alone; reported, and read by the
+    // joint45 and onward45 filters.
+    let joint = match &known.joint {
+        Some(j) => Some(j.clone()),
+        None => inputs.policy.frame_joint(inputs.obs.view(), pixel_small)?,
+    };
     let input = DecisionInput {
         observation: inputs.obs.view(),
         reference: reference.view(),
         pixel: pixel_small,
-        banned,
-        previous,
+        banned: known.banned,
+        previous: known.previous,
         mode,
         joint: joint.as_ref().map(|j| &j.estimate),
-        motion,
-        long_motion,
+        motion: known.motion,
+        long_motion: known.long_motion,
     };
     let model = &inputs.model;
     let Some(r) = inputs
@@ -692,7 +709,7 @@ pub(crate) fn decide(
             model.display()
         );
     }
-    Ok(serde_json::json!({
+    let out = serde_json::json!({
         "pixel": [pixel_full.0, pixel_full.1],
         "point_in_world": point.map(|p| [p.x, p.y, p.z]),
         "mode": mode,
@@ -702,7 +719,8 @@ pub(crate) fn decide(
         "stop": r.direction.is_none(),
         "joint": joint,
         "model": model,
-    }))
+    });
+    Ok((out, joint))
 }
 
 #[cfg(test)]

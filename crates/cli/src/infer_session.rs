@@ -5,13 +5,14 @@
 //! `--moved` whether the last move moved the part. The state is
 //! `DIR/session.json` and, exploring, `DIR/reference.f32` (the first frame
 //! at the model's size), each replaced whole.
-use crate::infer_cmd::{InferArgs, Inputs, decide, read_inputs};
+use crate::infer_cmd::{InferArgs, Inputs, Known, decide, read_inputs};
 use crate::{Ctx, usage};
 use anyhow::{Context, Result, bail};
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use std::path::Path;
 use umpnet_policy::cem::Mode;
+use umpnet_policy::frame_joint::FrameJoint;
 use umpnet_policy::memory::EpisodeMemory;
 
 const FORMAT: &str = "umpnet-infer-session";
@@ -44,6 +45,11 @@ struct State {
     /// Sessions written before it read as none.
     #[serde(default)]
     long_motion: Option<[f32; 3]>,
+    /// The grasped part's joint as the package's JointNet read it on the
+    /// first call's frame, where the grasp was made: later frames show the
+    /// gripper over it. Sessions written before it read it from each frame.
+    #[serde(default)]
+    joint: Option<FrameJoint>,
 }
 
 fn state_error(dir: &Path, what: impl std::fmt::Display) -> anyhow::Error {
@@ -113,7 +119,7 @@ fn start(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
         }
         let reference = inputs.reference.as_ref().unwrap_or(&inputs.obs);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
-        let out = decide(inputs, reference, pixel, &[], None, (None, None), &mut rng)?;
+        let (out, joint) = decide(inputs, reference, pixel, &Known::default(), &mut rng)?;
         let (r, c) = inputs.to_full(pixel);
         let gripper = inputs.full.view().point_in_world(r, c);
         let state = State {
@@ -130,6 +136,7 @@ fn start(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
             last: direction_of(&out),
             gripper: gripper.map(|g| [g.x, g.y, g.z]),
             long_motion: None,
+            joint,
         };
         save(dir, &state)?;
         print(out, dir, &state)
@@ -148,6 +155,16 @@ fn load_state(dir: &Path, inputs: &Inputs) -> Result<State> {
         return Err(state_error(
             dir,
             "session.json is not an umpnet infer session (version 1)",
+        ));
+    }
+    if state
+        .joint
+        .as_ref()
+        .is_some_and(|j| !j.estimate.is_usable())
+    {
+        return Err(state_error(
+            dir,
+            "session.json: joint needs a nonzero axis and finite numbers",
         ));
     }
     if state.model != model {
@@ -259,15 +276,14 @@ fn next(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
         state.seed ^ state.steps.wrapping_mul(0x9E37_79B9_7F4A_7C15),
     );
-    let out = decide(
-        inputs,
-        reference,
-        pixel,
-        memory.banned(),
-        memory.previous(),
-        (memory.motion(), memory.long_motion()),
-        &mut rng,
-    )?;
+    let known = Known {
+        banned: memory.banned(),
+        previous: memory.previous(),
+        motion: memory.motion(),
+        long_motion: memory.long_motion(),
+        joint: state.joint.clone(),
+    };
+    let (out, _) = decide(inputs, reference, pixel, &known, &mut rng)?;
     state.steps += 1;
     state.banned = memory.banned().iter().map(|d| [d.x, d.y, d.z]).collect();
     state.previous = memory.previous().map(|d| [d.x, d.y, d.z]);

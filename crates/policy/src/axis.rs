@@ -7,7 +7,7 @@
 )]
 use nalgebra::{Matrix3, Vector3};
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "type", rename_all = "lowercase")]
 /// A joint inferred from the moves that moved the part (world frame).
 pub enum JointEstimate {
@@ -37,6 +37,16 @@ impl JointEstimate {
             }
         };
         (v.norm() > 1e-6 && v.iter().all(|x| x.is_finite())).then(|| v.normalize())
+    }
+
+    /// Whether every number is finite and the axis has a direction: what a
+    /// joint read back from a file must be before a policy uses it.
+    pub fn is_usable(&self) -> bool {
+        let (axis, point) = match self {
+            Self::Prismatic { axis } => (axis, [0.0; 3]),
+            Self::Revolute { axis, point } => (axis, *point),
+        };
+        axis.iter().chain(&point).all(|v| v.is_finite()) && Vector3::from(*axis).norm() > 1e-6
     }
 
     /// The way on for a point that went `motion` over its last move to
@@ -312,6 +322,17 @@ mod tests {
         let next = hinge.onward(p, m).unwrap();
         let angle = next.dot(&m.normalize()).clamp(-1.0, 1.0).acos();
         assert!((angle - MAX_TURN_RAD).abs() < 1e-4, "{angle}");
+    }
+
+    #[test]
+    fn a_joint_read_back_is_usable_only_with_an_axis_and_finite_numbers() {
+        let hinge = |axis: [f32; 3], point: [f32; 3]| JointEstimate::Revolute { axis, point };
+        assert!(hinge([0.0, 0.0, 1.0], [1.0, 2.0, 3.0]).is_usable());
+        assert!(!hinge([0.0, 0.0, 0.0], [1.0, 2.0, 3.0]).is_usable());
+        assert!(!hinge([0.0, 0.0, 1.0], [f32::NAN, 2.0, 3.0]).is_usable());
+        let slide = |axis: [f32; 3]| JointEstimate::Prismatic { axis };
+        assert!(slide([0.0, 1.0, 0.0]).is_usable());
+        assert!(!slide([f32::INFINITY, 1.0, 0.0]).is_usable());
     }
 
     #[test]

@@ -35,7 +35,7 @@ pub const MIN_PART_PIXELS: usize = 3;
 pub const VOTE_RADIUS: f32 = 0.15;
 
 /// The joint of the part at the grasp, read from one frame.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FrameJoint {
     /// Type, unit axis (world frame) and, for a hinge, a point on its axis.
     /// The axis points so that the part opens by a positive turn about it
