@@ -232,11 +232,8 @@ pub fn joint_from_fields(
             axis: flow.normalize().into(),
         }
     };
-    let finite = match &estimate {
-        JointEstimate::Prismatic { axis } => axis.iter().all(|v| v.is_finite()),
-        JointEstimate::Revolute { axis, point } => axis.iter().chain(point).all(|v| v.is_finite()),
-    };
-    finite.then_some(FrameJoint {
+    // The axes above are unit vectors where finite, so this is the finite check.
+    estimate.is_usable().then_some(FrameJoint {
         estimate,
         hinge_probability,
         voting_pixels: voters.len(),
