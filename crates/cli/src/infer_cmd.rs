@@ -646,7 +646,7 @@ pub(crate) struct Known<'a> {
     pub long_motion: Option<Vector3<f32>>,
     /// The joint read from the frame the grasp was made on; None: read it
     /// from this frame.
-    pub joint: Option<umpnet_policy::frame_joint::FrameJoint>,
+    pub joint: Option<&'a umpnet_policy::frame_joint::FrameJoint>,
 }
 
 /// One decision, as infer prints it (JSON): the grasp pixel in the full
@@ -667,7 +667,7 @@ pub(crate) fn decide(
     // The joint of the grasped part (a package with a JointNet): as read at
     // the grasp, else from this frame alone; reported, and read by the
     // joint45 and onward45 filters.
-    let joint = match &known.joint {
+    let joint = match known.joint {
         Some(j) => Some(j.clone()),
         None => inputs.policy.frame_joint(inputs.obs.view(), pixel_small)?,
     };

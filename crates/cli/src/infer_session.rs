@@ -281,7 +281,7 @@ fn next(dir: &Path, a: &InferArgs, inputs: &Inputs) -> Result<()> {
         previous: memory.previous(),
         motion: memory.motion(),
         long_motion: memory.long_motion(),
-        joint: state.joint.clone(),
+        joint: state.joint.as_ref(),
     };
     let (out, _) = decide(inputs, reference, pixel, &known, &mut rng)?;
     state.steps += 1;
