@@ -10,7 +10,9 @@ direction it chose) is simulated on a copy of the articulation
 
 - AoT accuracy: the predicted Arrow of Time of each candidate against the
   true one, relative to the reference image's state (the start when exploring,
-  the goal in the goal task), with the training labels' thresholds;
+  the goal in the goal task), with the training labels' thresholds; with the
+  confusion of the three classes, and the sign's accuracy where the part
+  moved past delta and the head said it would;
 - rank correlation: Spearman's rho of predicted against true distance over one
   state's candidates (median over states);
 - progress share: the chosen direction's progress (away from the start when
@@ -22,6 +24,14 @@ direction it chose) is simulated on a copy of the articulation
   privileged oracle.
 
 Held-out: the scenes come from seeds training never uses (see SEED_OFFSET).
+
+By default each decision is the networks' own at that state alone (the
+paper's policy, no memory). `--explore-filter F` / `--goal-filter F` decide as
+`umpnet eval --direction-filter F` does instead: one runtime policy per
+environment, with the episode's memory (stalled moves, how the gripper went,
+the joint read at the grasp), so the progress share and success are those of
+the policy as it runs. A filter rewrites what the heads said of the candidates
+it rules on, so those runs do not score AoT accuracy or distance ranks.
 """
 
 from __future__ import annotations
@@ -51,25 +61,52 @@ class Tally:
     episodes: int = 0
     valid_positions: int = 0
     successes: int = 0
-    aot_hits: int = 0
-    aot_total: int = 0
+    states: int = 0
     rhos: list[float] = field(default_factory=list)
-    chosen_progress: float = 0.0
-    best_progress: float = 0.0
+    # AoT truth (rows) against prediction (columns), classes -1, 0, +1.
+    confusion: np.ndarray = field(default_factory=lambda: np.zeros((3, 3), np.int64))
+    # One row per episode: AoT hits, AoT candidates, chosen progress, best progress.
+    rows: list[np.ndarray] = field(default_factory=list)
 
     def summary(self) -> dict:
         def share(a, b):
             return a / b if b else None
 
+        rows = np.array(self.rows).reshape(-1, len(PER_EPISODE))
+        hits, total, chosen, best = rows.sum(0)
         return {
             "episodes": self.episodes,
             "position_validity": share(self.valid_positions, self.episodes),
             "success": share(self.successes, self.episodes),
-            "aot_accuracy": share(self.aot_hits, self.aot_total),
+            "aot_accuracy": share(hits, total),
+            "aot_accuracy_95": ratio_interval(rows[:, 0], rows[:, 1]),
+            "aot_confusion": self.confusion.tolist() if self.confusion.any() else None,
+            # Of the candidates that moved the part past delta and were predicted
+            # to: how often the arrow's sign was right.
+            "aot_sign_accuracy": share(
+                int(self.confusion[0, 0] + self.confusion[2, 2]), int(self.confusion[np.ix_([0, 2], [0, 2])].sum())
+            ),
             "rank_correlation": float(np.median(self.rhos)) if self.rhos else None,
-            "progress_share": share(self.chosen_progress, self.best_progress),
-            "states": len(self.rhos),
+            "progress_share": share(chosen, best),
+            "progress_share_95": ratio_interval(rows[:, 2], rows[:, 3]),
+            "states": self.states,
         }
+
+
+PER_EPISODE = ("aot_hits", "aot_total", "chosen_progress", "best_progress")
+
+
+def ratio_interval(num: np.ndarray, den: np.ndarray, resamples: int = 2000) -> list[float] | None:
+    """A 95% bootstrap interval of sum(num) / sum(den), resampling episodes
+    (the states of one episode are not independent); None with no denominator.
+    Seeded: the same rows give the same interval."""
+    if den.sum() <= 0:
+        return None
+    rng = np.random.default_rng(0)
+    pick = rng.integers(len(den), size=(resamples, len(den)))
+    n, d = num[pick].sum(1), den[pick].sum(1)
+    r = n[d > 0] / d[d > 0]
+    return [float(np.quantile(r, 0.025)), float(np.quantile(r, 0.975))]
 
 
 def spearman(a: np.ndarray, b: np.ndarray) -> float | None:
@@ -102,10 +139,54 @@ def progress(before, after, start, goal, task):
     return np.abs(after - start) - np.abs(before - start)
 
 
-def run(policy, split, task, episodes, seed, physics, position="learned", direction="learned", probe=True, n=8):
+class Episodes:
+    """One runtime policy per environment, each deciding with its episode's
+    memory as `umpnet eval` does (`Policy.decide`): moves that stalled are not
+    tried again, and the direction filter reads the joint at the grasp and how
+    the gripper went."""
+
+    def __init__(self, package: Path, n: int, seed: int, direction_filter: str, threads: int = 1):
+        self.policies = [
+            umpnet.Policy(str(package), seed=seed, threads=threads, direction_filter=direction_filter) for _ in range(n)
+        ]
+        self.resolution = self.policies[0].resolution
+        self.stream = np.random.default_rng(seed)
+
+    def start(self) -> None:
+        for p in self.policies:
+            p.reset(seed=int(self.stream.integers(2**63)))
+
+    def decide(self, obs, live, mode, moved, gripper):
+        """The live environments' decisions; a stop for the rest."""
+        out = []
+        for i, p in enumerate(self.policies):
+            if not live[i]:
+                out.append({"direction": None, "candidates": [], "distance": [], "aot": []})
+                continue
+            pixel = tuple(int(v) for v in obs["gripper_pixel"][i])
+            out.append(
+                p.decide(
+                    obs["image"][i],
+                    obs["reference"][i],
+                    pixel,
+                    mode,
+                    None if moved is None else bool(moved[i]),
+                    [float(v) for v in gripper[i]] if np.isfinite(gripper[i]).all() else None,
+                )
+            )
+        return out
+
+
+def run(
+    policy, split, task, episodes, seed, physics, position="learned", direction="learned", probe=True, n=8, memory=None
+):
     """Episodes of `task` on `split`'s categories; `position`/`direction` are
     "learned" or "oracle". Probing (the direction diagnostics) runs only where
-    the learned directions act."""
+    the learned directions act. `memory` (an [`Episodes`] of n policies) makes
+    the learned decisions as `umpnet eval` does, under its direction filter;
+    without it each is the networks' own choice at that state alone, and
+    only then are the heads' Arrow of Time and distance ranks scored (a
+    filter overrides what the heads said of the candidates it rules on)."""
     env = umpnet.VecEnv(
         n, category=SPLITS[split], split=split, seed=seed, resolution=policy.resolution, task=task, physics=physics
     )
@@ -114,13 +195,20 @@ def run(policy, split, task, episodes, seed, physics, position="learned", direct
     while tally.episodes < episodes:
         obs = env.reset()
         scenes = env.scenes
+        if memory is not None:
+            memory.start()
+        take = min(n, episodes - tally.episodes)  # the last batch may run more than it counts
+        acc = np.zeros((n, len(PER_EPISODE)))
         if position == "learned":
-            pixels = [
-                policy.position(obs["image"][i], obs["reference"][i] if task == "goal" else None) for i in range(n)
-            ]
+            pixels = []
+            for i in range(n):
+                image, goal_image = obs["image"][i], obs["reference"][i] if task == "goal" else None
+                chooser = policy if memory is None else memory.policies[i]
+                pixels.append(chooser.position(image, goal_image))
         else:
             pixels = env.scripted_actions("oracle")
         obs, info = env.step_position(np.array(pixels, np.int64))
+        gripper, moved = np.asarray(info["gripper_in_world"]), None
         joint = np.array(info["joint"])
         valid = np.array(info["valid"], bool)
         thr = np.asarray(info["threshold"], np.float64)
@@ -143,18 +231,23 @@ def run(policy, split, task, episodes, seed, physics, position="learned", direct
             if direction == "learned":
                 # An environment without a grasp reports pixel (-1, -1); its
                 # answer is not used (it is not live), but the pixel must be on the image.
-                pixels = np.maximum(obs["gripper_pixel"], 0)
-                res = policy.direction_batch(obs["image"], obs["reference"], pixels, mode)
+                if memory is None:
+                    pixels = np.maximum(obs["gripper_pixel"], 0)
+                    res = policy.direction_batch(obs["image"], obs["reference"], pixels, mode)
+                else:
+                    res = memory.decide(obs, live, mode, moved, gripper)
                 dirs = np.array([r["direction"] or [0.0, 0.0, 1.0] for r in res], np.float32)
                 live &= np.array([r["direction"] is not None for r in res])
                 if probe and live.any():
-                    measure(env, res, dirs, live, value, start, goal, task, tally)
+                    counted = live & (np.arange(n) < take)
+                    measure(env, res, dirs, counted, value, start, goal, task, tally, acc, heads=memory is None)
             else:
                 dirs = np.array(
                     [d if isinstance(d, list) else [0.0, 0.0, 1.0] for d in env.scripted_actions("oracle")], np.float32
                 )
             before = value.copy()
-            obs, _, sinfo = env.step_direction(dirs)
+            obs, labels, sinfo = env.step_direction(dirs)
+            moved, gripper = np.asarray(labels["moved"]), np.asarray(sinfo["gripper_in_world"])
             after = np.asarray(sinfo["joint_after"], np.float64)
             value = np.where(live, after, value)
             if task == "goal":
@@ -167,15 +260,17 @@ def run(policy, split, task, episodes, seed, physics, position="learned", direct
                 reached = (np.abs(after - start) > thr) & ((after < lower + thr) | (after > upper - thr))
             success |= live & reached
             live &= ~reached
-        take = min(n, episodes - tally.episodes)
+        tally.rows.extend(acc[:take])
         tally.episodes += take
         tally.valid_positions += int(valid[:take].sum())
         tally.successes += int(success[:take].sum())
     return tally
 
 
-def measure(env, res, dirs, live, value, start, goal, task, tally):
-    """Simulates every candidate and the chosen direction at the current states."""
+def measure(env, res, dirs, live, value, start, goal, task, tally, acc, heads=True):
+    """Simulates every candidate and the chosen direction at the `live`
+    states, adding to each episode's row of `acc` (PER_EPISODE); `heads`:
+    also score the heads' Arrow of Time and distance ranks."""
     k = max(len(r["candidates"]) for r in res)
     cand = np.zeros((len(res), k + 1, 3), np.float32)
     for i, r in enumerate(res):
@@ -187,47 +282,75 @@ def measure(env, res, dirs, live, value, start, goal, task, tally):
         m = len(res[i]["candidates"])
         after = labels["joint_after"][i].astype(np.float64)
         ref = goal[i] if task == "goal" else start[i]
-        truth = true_aot(value[i], after[:m], ref, labels["train_moved"][i, :m])
-        pred = np.asarray(res[i]["aot"])
-        tally.aot_hits += int((pred == truth).sum())
-        tally.aot_total += m
-        rho = spearman(np.asarray(res[i]["distance"], np.float64), labels["r_dist"][i, :m].astype(np.float64))
-        if rho is not None:
-            tally.rhos.append(rho)
+        if heads:
+            truth = true_aot(value[i], after[:m], ref, labels["train_moved"][i, :m])
+            pred = np.asarray(res[i]["aot"])
+            acc[i, 0] += int((pred == truth).sum())
+            acc[i, 1] += m
+            np.add.at(tally.confusion, (truth + 1, pred + 1), 1)
+            rho = spearman(np.asarray(res[i]["distance"], np.float64), labels["r_dist"][i, :m].astype(np.float64))
+            if rho is not None:
+                tally.rhos.append(rho)
+        tally.states += 1
         gain = progress(value[i], after, start[i], goal[i], task)
-        tally.chosen_progress += float(gain[m])
-        tally.best_progress += float(max(gain.max(), 0.0))
+        acc[i, 2] += float(gain[m])
+        acc[i, 3] += float(max(gain.max(), 0.0))
 
 
-def diagnose(package: Path, episodes: int, seed: int, physics: str, threads: int = 1) -> dict:
+def diagnose(
+    package: Path, episodes: int, seed: int, physics: str, threads: int = 1, filters: dict | None = None
+) -> dict:
+    """`filters` maps a task ("exploration", "goal") to the direction filter
+    its learned decisions run under, with the episode's memory, as `umpnet
+    eval --direction-filter` runs them; a task not in it gets the networks'
+    stateless choice (the paper's policy)."""
+    filters = filters or {}
     policy = umpnet.Policy(str(package), seed=seed, threads=threads)
-    report = {"package": str(package), "episodes": episodes, "seed": seed, "physics": physics, "splits": {}}
+    report = {
+        "package": str(package),
+        "episodes": episodes,
+        "seed": seed,
+        "physics": physics,
+        "filters": filters,
+        "splits": {},
+    }
+
+    def memory(task, s):
+        f = filters.get(task)
+        return None if f is None else Episodes(package, 8, s, f, threads)
+
     for split in ("train", "test"):
         s = SEED_OFFSET + seed * 1000 + (0 if split == "train" else 500)
-        explore = run(policy, split, "exploration", episodes, s, physics).summary()
-        goal = run(policy, split, "goal", episodes, s + 1, physics).summary()
+        explore = run(policy, split, "exploration", episodes, s, physics, memory=memory("exploration", s)).summary()
+        goal = run(policy, split, "goal", episodes, s + 1, physics, memory=memory("goal", s + 1)).summary()
         swap = {
             "learned/learned": goal["success"],
             "learned/oracle": run(policy, split, "goal", episodes, s + 1, physics, direction="oracle").summary()[
                 "success"
             ],
-            "oracle/learned": run(policy, split, "goal", episodes, s + 1, physics, position="oracle").summary()[
-                "success"
-            ],
+            "oracle/learned": run(
+                policy, split, "goal", episodes, s + 1, physics, position="oracle", memory=memory("goal", s + 1)
+            ).summary()["success"],
         }
         report["splits"][split] = {"exploration": explore, "goal": goal, "swap": swap}
     return report
 
 
-def fmt(v):
-    return "-" if v is None else f"{v:.2f}"
+def fmt(v, interval=None):
+    if v is None:
+        return "-"
+    return f"{v:.2f}" + ("" if interval is None else f" [{interval[0]:.2f}, {interval[1]:.2f}]")
 
 
 def print_report(r: dict) -> None:
     print(f"{r['package']}: {r['episodes']} episodes per split and task, seed {r['seed']}, {r['physics']} physics")
+    for task, f in r.get("filters", {}).items():
+        print(f"{task}: decided as `umpnet eval --direction-filter {f}` does (heads' AoT and ranks not scored)")
     rows = [
         ("AoT accuracy (exploration)", "exploration", "aot_accuracy"),
         ("AoT accuracy (goal)", "goal", "aot_accuracy"),
+        ("AoT sign, moved and predicted to (exploration)", "exploration", "aot_sign_accuracy"),
+        ("AoT sign, moved and predicted to (goal)", "goal", "aot_sign_accuracy"),
         ("distance rank correlation (exploration)", "exploration", "rank_correlation"),
         ("distance rank correlation (goal)", "goal", "rank_correlation"),
         ("chosen / best progress (exploration)", "exploration", "progress_share"),
@@ -235,12 +358,13 @@ def print_report(r: dict) -> None:
         ("position validity (exploration)", "exploration", "position_validity"),
         ("position validity (goal)", "goal", "position_validity"),
     ]
-    print(f"{'diagnostic':44} {'train':>6} {'test':>6}")
+    print(f"{'diagnostic (95% interval over episodes)':48} {'train':>18} {'test':>18}")
     for name, task, key in rows:
-        print(f"{name:44} " + " ".join(f"{fmt(r['splits'][s][task][key]):>6}" for s in ("train", "test")))
-    print(f"\n{'goal success: position / direction':44} {'train':>6} {'test':>6}")
+        cells = (fmt(r["splits"][s][task][key], r["splits"][s][task].get(key + "_95")) for s in ("train", "test"))
+        print(f"{name:48} " + " ".join(f"{c:>18}" for c in cells))
+    print(f"\n{'goal success: position / direction':48} {'train':>18} {'test':>18}")
     for combo in ("learned/learned", "learned/oracle", "oracle/learned"):
-        print(f"{combo:44} " + " ".join(f"{fmt(r['splits'][s]['swap'][combo]):>6}" for s in ("train", "test")))
+        print(f"{combo:48} " + " ".join(f"{fmt(r['splits'][s]['swap'][combo]):>18}" for s in ("train", "test")))
 
 
 def main(argv=None) -> int:
@@ -251,6 +375,15 @@ def main(argv=None) -> int:
     p.add_argument("--physics", choices=["reference", "ideal"], default="reference")
     p.add_argument("--threads", type=int, default=1, help="runtime threads")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.add_argument(
+        "--explore-filter",
+        metavar="FILTER",
+        help="decide exploring as `umpnet eval --direction-filter FILTER` does, with the episode's memory "
+        "(e.g. onward45); the chosen direction's progress is then the policy's, not the networks' alone",
+    )
+    p.add_argument(
+        "--goal-filter", metavar="FILTER", help="the same toward a goal (e.g. goal45), in the swap table too"
+    )
     a = p.parse_args(argv)
     if a.episodes < 1:
         p.error(f"--episodes {a.episodes}: expected at least 1")
@@ -258,7 +391,8 @@ def main(argv=None) -> int:
         print(f"error: {a.package}: no model.json (expected a model package directory)", file=sys.stderr)
         return 2
     try:
-        report = diagnose(a.package, a.episodes, a.seed, a.physics, a.threads)
+        filters = {t: f for t, f in (("exploration", a.explore_filter), ("goal", a.goal_filter)) if f}
+        report = diagnose(a.package, a.episodes, a.seed, a.physics, a.threads, filters)
     except (ValueError, RuntimeError) as e:
         print(f"error: {a.package}: {e}", file=sys.stderr)
         return 2

@@ -10,7 +10,7 @@ use crate::mixed::{DEFAULT_BUDGET, Mixed, grasp_at, mixed_info, mixed_step, move
 use crate::{
     MAX_ENVS, buffers, eval_err, parse_direction, probe, scene_from_py, scene_to_py, scripted_to_py,
 };
-use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -162,7 +162,8 @@ impl VecEnv {
             .collect()
     }
 
-    /// pixels: int array n x 2 (row, col). Returns (observations, info) with info["valid"] a bool array.
+    /// pixels: int array n x 2 (row, col). Returns (observations, info) with info["valid"] a bool array
+    /// and info["gripper_in_world"] (n x 3) where each gripper holds the part.
     fn step_position<'py>(
         &mut self,
         py: Python<'py>,
@@ -221,11 +222,13 @@ impl VecEnv {
                     .collect::<Vec<_>>(),
             ),
         )?;
+        info.set_item("gripper_in_world", grippers(py, &self.envs)?)?;
         Ok((obs, info))
     }
 
     /// directions: float array n x 3. Environments without a valid grasp are
-    /// skipped (info["active"] False, labels zero). Returns (observations, labels, info).
+    /// skipped (info["active"] False, labels zero). Returns (observations, labels, info);
+    /// info["gripper_in_world"] (n x 3) is where each gripper is after its move.
     fn step_direction<'py>(
         &mut self,
         py: Python<'py>,
@@ -311,6 +314,7 @@ impl VecEnv {
             "suction_lost",
             PyArray1::from_vec(py, flag(&|l| l.suction_lost)),
         )?;
+        info.set_item("gripper_in_world", grippers(py, &self.envs)?)?;
         info.set_item(
             "reached_boundary",
             PyArray1::from_vec(py, flag(&|l| l.train.reached_boundary)),
@@ -447,4 +451,15 @@ impl VecEnv {
         }
         Ok(out)
     }
+}
+
+/// Where each environment's gripper is (n x 3, world frame), as the policy's
+/// `onward45` and `goal45` filters read it (`Policy.decide(gripper=...)`);
+/// NaN where it holds nothing.
+fn grippers<'py>(py: Python<'py>, envs: &[TrainEnv]) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let flat: Vec<f32> = envs
+        .iter()
+        .flat_map(|e| e.gripper_in_world().unwrap_or([f32::NAN; 3]))
+        .collect();
+    PyArray1::from_vec(py, flat).reshape([envs.len(), 3])
 }

@@ -75,18 +75,29 @@ def test_vecenv_equals_separate_envs():
         assert np.array_equal(obs["reference"][i], singles[i]["reference"])
     pixels = np.array(vec.scripted_actions("oracle"), dtype=np.int64)
     obs, info = vec.step_position(pixels)
+    assert info["gripper_in_world"].shape == (n, 3)
     for i, e in enumerate(envs):
         o, inf = e.step_position(*pixels[i])
         assert inf["valid"] == info["valid"][i]
         assert np.array_equal(o["image"], obs["image"][i])
+        held = inf["gripper_in_world"]  # None where the grasp missed: NaN in the VecEnv's row
+        assert (
+            np.isnan(info["gripper_in_world"][i]).all()
+            if held is None
+            else held == info["gripper_in_world"][i].tolist()
+        )
     dirs = np.array([d if d is not None else [0, 0, 1] for d in vec.scripted_actions("oracle")], dtype=np.float32)
+    before = info["gripper_in_world"].copy()
     obs, labels, info = vec.step_direction(dirs)
     for i, e in enumerate(envs):
         if not info["active"][i]:
             continue
-        o, lab, _ = e.step_direction(dirs[i].tolist())
+        o, lab, inf = e.step_direction(dirs[i].tolist())
         assert lab["aot"] == labels["aot"][i] and abs(lab["r_dist"] - labels["r_dist"][i]) < 1e-6
         assert np.array_equal(o["image"], obs["image"][i])
+        assert inf["gripper_in_world"] == info["gripper_in_world"][i].tolist()
+        # A move goes at most its 0.18 m.
+        assert np.linalg.norm(info["gripper_in_world"][i] - before[i]) <= 0.18 + 1e-3
 
 
 def test_errors_are_python_exceptions():
