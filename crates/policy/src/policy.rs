@@ -436,16 +436,16 @@ impl UmpnetPolicy {
         inputs
             .iter()
             .map(|inp| {
-                let (r, c) = on_image(inp.pixel, (h, w));
-                let gripper = point_at(&inp.observation, (r, c));
+                let held = Held::new(inp, (h, w));
+                let gripper = held.point_in_world;
                 match self.direction_filter {
                     DirectionFilter::None => Keep::All,
-                    DirectionFilter::Normal90 => Keep::HalfSpace(face_normal(inp, (r, c))),
+                    DirectionFilter::Normal90 => Keep::HalfSpace(face_normal(inp, held.pixel)),
                     DirectionFilter::Prev90 => inp.previous.map_or(Keep::All, Keep::HalfSpace),
                     DirectionFilter::Joint45 => joint_line(inp, gripper),
                     DirectionFilter::Goal45 => goal_way(inp, gripper),
                     DirectionFilter::Onward45 => inp.went().map_or_else(
-                        || onward_after_stall(inp, gripper, (r, c)),
+                        || onward_after_stall(inp, held),
                         |went| Keep::Way {
                             way: along_joint(inp, gripper).unwrap_or(went),
                             aot: 1,
@@ -526,6 +526,25 @@ impl UmpnetPolicy {
     }
 }
 
+/// Where the gripper holds the part in one decision's frame: its pixel
+/// (clamped onto the image) and the point the frame shows there, one read
+/// for every rule.
+#[derive(Clone, Copy)]
+struct Held {
+    pixel: (usize, usize),
+    point_in_world: Vector3<f32>,
+}
+
+impl Held {
+    fn new(inp: &DecisionInput<'_>, (h, w): (usize, usize)) -> Self {
+        let pixel = on_image(inp.pixel, (h, w));
+        Self {
+            pixel,
+            point_in_world: point_at(&inp.observation, pixel),
+        }
+    }
+}
+
 /// What a direction filter keeps of one decision's candidates.
 enum Keep {
     All,
@@ -597,17 +616,13 @@ fn along_joint(inp: &DecisionInput<'_>, gripper: Vector3<f32>) -> Option<Vector3
 /// (a limit, or a line read backwards); the next line where they stalled
 /// on both; the heads choose where every line has, and before any stall
 /// where the JointNet read no joint.
-fn onward_after_stall(
-    inp: &DecisionInput<'_>,
-    gripper: Vector3<f32>,
-    (r, c): (usize, usize),
-) -> Keep {
+fn onward_after_stall(inp: &DecisionInput<'_>, held: Held) -> Keep {
     let stalled = |v: Vector3<f32>| {
         inp.banned
             .iter()
             .any(|b| b.dot(&v) >= std::f32::consts::FRAC_1_SQRT_2)
     };
-    let line = joint_line(inp, gripper);
+    let line = joint_line(inp, held.point_in_world);
     if inp.banned.is_empty() {
         return line;
     }
@@ -625,7 +640,7 @@ fn onward_after_stall(
         }
     }
     // Pulling off the face first: what suction does best.
-    if let Some(n) = face_normal(inp, (r, c)).try_normalize(1e-6) {
+    if let Some(n) = face_normal(inp, held.pixel).try_normalize(1e-6) {
         for way in [n, -n] {
             if !stalled(way) {
                 return Keep::Way {
