@@ -60,6 +60,15 @@ impl DecisionInput<'_> {
         long_direction(self.motion)
     }
 
+    /// [`Self::went`] where the last move moved the grasped part. A move
+    /// that carried the gripper but left the part's joint where it was
+    /// moved something else: the part's parent (a door that swings when its
+    /// latch is pulled), and onward along it the part stays as it is.
+    fn went_with_part(&self) -> Option<Vector3<f32>> {
+        self.went()
+            .filter(|_| self.previous.is_none_or(|p| !self.banned.contains(&p)))
+    }
+
     /// [`Self::went`], or after moves that stalled, the direction of the
     /// last one that carried the gripper.
     fn went_last(&self) -> Option<Vector3<f32>> {
@@ -444,7 +453,7 @@ impl UmpnetPolicy {
                     DirectionFilter::Prev90 => inp.previous.map_or(Keep::All, Keep::HalfSpace),
                     DirectionFilter::Joint45 => joint_line(inp, gripper),
                     DirectionFilter::Goal45 => goal_way(inp, gripper),
-                    DirectionFilter::Onward45 => inp.went().map_or_else(
+                    DirectionFilter::Onward45 => inp.went_with_part().map_or_else(
                         || onward_after_stall(inp, held),
                         |went| Keep::Way {
                             way: along_joint(inp, gripper).unwrap_or(went),

@@ -958,3 +958,43 @@ fn onward45_on_a_hinge_turns_the_last_move_with_the_part() {
         assert!((d - motion.normalize()).norm() < 1e-5, "{joint:?}: {d:?}");
     }
 }
+
+#[test]
+fn onward45_does_not_follow_a_motion_that_left_the_part_where_it_was() {
+    use umpnet_policy::policy::DirectionFilter;
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let policy = policy.with_direction_filter(DirectionFilter::Onward45);
+    let mut obs = observation(&policy, 23);
+    let (h, w) = policy.resolution();
+    let pixel = (h / 2, w / 2);
+    // The grasped face looks along -y (exploring, its normal is read from the reference).
+    for (k, v) in [0.0, -1.0, 0.0].iter().enumerate() {
+        obs[[pixel.0, pixel.1, 6 + k]] = *v;
+    }
+    let last = Vector3::new(1.0, 0.0, 0.0);
+    // The gripper went 0.1 m up over the last move.
+    let motion = Vector3::new(0.0, 0.0, 0.1);
+    let decide = |banned: &[Vector3<f32>]| {
+        let input = DecisionInput {
+            banned,
+            previous: Some(last),
+            motion: Some(motion),
+            ..explore(&obs, &obs, pixel)
+        };
+        policy
+            .directions(&[input], &mut [ChaCha8Rng::seed_from_u64(5)])
+            .unwrap()
+            .remove(0)
+            .direction
+            .unwrap()
+    };
+    // The move moved the part: onward along where the gripper went.
+    let d = decide(&[]);
+    assert!((d - Vector3::z()).norm() < 1e-5, "{d:?}");
+    // It moved something else (the part's parent swung): a stall, and the
+    // next try is off the grasped face, not along the parent's path.
+    let d = decide(&[last]);
+    assert!((d - Vector3::new(0.0, -1.0, 0.0)).norm() < 1e-5, "{d:?}");
+}
