@@ -209,6 +209,34 @@ def test_a_mujocoinclude_fragment_is_wrapped_and_an_existing_object_is_kept(tmp_
     assert (tmp_path / "out" / "lid" / "mobility.urdf").read_bytes() == before
 
 
+def test_angle_units_follow_the_file_unless_the_including_model_sets_them(tmp_path):
+    # robosuite's objects say nothing of units: the model that includes them
+    # declares <compiler angle="radian"/>, and "0 0.4" means 0.4 rad there.
+    door = tmp_path / "door.xml"
+    door.write_text(
+        '<mujoco model="door"><worldbody><body name="frame"><geom type="box" size=".02 .02 .3"/>'
+        '<body name="panel" pos=".25 0 0"><joint name="hinge" type="hinge" axis="0 0 1" range="0 0.4"/>'
+        '<geom type="box" size=".22 .02 .29"/></body></body></worldbody></mujoco>'
+    )
+    frag = tmp_path / "lid.xml"
+    frag.write_text(
+        '<mujocoinclude><body name="box"><geom type="box" size=".2 .2 .1"/>'
+        '<body name="lid" pos="0 .2 .1"><joint name="lid_hinge" type="hinge" axis="1 0 0" range="0 1.2"/>'
+        '<geom type="box" size=".2 .2 .01" pos="0 -.2 0"/></body></body></mujocoinclude>'
+    )
+    for file, joint, value in ((door, "hinge", 0.4), (frag, "lid_hinge", 1.2)):
+        importer("import-mjcf", file, "--out", tmp_path / "file")
+        urdf = tmp_path / "file" / file.stem / "mobility.urdf"
+        assert joints_of(urdf)[joint]["limit"] == pytest.approx((0.0, np.radians(value)), abs=1e-6)
+        importer("import-mjcf", file, "--out", tmp_path / "rad", "--angle", "radian")
+        urdf = tmp_path / "rad" / file.stem / "mobility.urdf"
+        assert joints_of(urdf)[joint]["limit"] == pytest.approx((0.0, value), abs=1e-6)
+        meta = json.loads((urdf.parent / "object_meta_info.json").read_text())
+        assert meta["source"]["angle"] == "radian"
+    p = importer("import-mjcf", door, "--out", tmp_path / "bad", "--angle", "gradian", check=False)
+    assert p.returncode == 2 and "--angle" in p.stderr and "radian" in p.stderr
+
+
 def _without_wall_time(path: Path) -> dict:
     r = json.loads(path.read_text())
     r["summary"].pop("wall_seconds")

@@ -115,17 +115,36 @@ def _root_tag(path: Path) -> str:
     return ""
 
 
-def compile_mjcf(path: Path):
+ANGLE_UNITS = ("radian", "degree")
+
+
+def compile_mjcf(path: Path, angle: str | None = None):
     """The compiled MjModel of ``path``. A ``<mujocoinclude>`` fragment is
-    wrapped in a ``<mujoco>`` root beside it (so its relative paths resolve)."""
+    wrapped in a ``<mujoco>`` root beside it (so its relative paths resolve).
+    ``angle`` ("radian" or "degree") is the unit of the file's angles, as a
+    model that includes it declares (robosuite's objects are compiled inside
+    one with ``<compiler angle="radian"/>``); None: the file's own, and
+    MuJoCo's degrees where it says nothing."""
     mujoco = _mujoco()
     if not path.is_file():
         raise ImportFailed(f"{path}: no such file")
+    if angle is not None and angle not in ANGLE_UNITS:
+        raise ImportFailed(f"--angle {angle}: expected one of {', '.join(ANGLE_UNITS)}")
+    if angle is not None and not hasattr(mujoco, "MjSpec"):
+        raise ImportFailed(f"--angle needs MuJoCo 3.2 or newer (MjSpec); this is {mujoco.__version__}")
+
+    def load(file: str):
+        if angle is None:
+            return mujoco.MjModel.from_xml_path(file)
+        spec = mujoco.MjSpec.from_file(file)
+        spec.compiler.degree = angle == "degree"
+        return spec.compile()
+
     tag = _root_tag(path)
     if tag != "mujocoinclude":
         _check_raw(mujoco, path)
         try:
-            return mujoco.MjModel.from_xml_path(str(path))
+            return load(str(path))
         except Exception as e:  # MuJoCo raises ValueError; keep its words
             raise ImportFailed(f"{path}: MuJoCo cannot compile it: {_one_line(e)}") from e
     # A fragment of bodies belongs in <worldbody>; one of assets or defaults in <mujoco>.
@@ -136,7 +155,7 @@ def compile_mjcf(path: Path):
     try:
         with os.fdopen(fd, "w") as f:
             f.write(f'<mujoco model="{path.stem}">{include}</mujoco>\n')
-        return mujoco.MjModel.from_xml_path(wrapper)
+        return load(wrapper)
     except Exception as e:
         raise ImportFailed(
             f"{path}: a <mujocoinclude> fragment that MuJoCo cannot compile inside a <mujoco> root: {_one_line(e)}"
@@ -323,12 +342,13 @@ def _ancestors(m, b: int) -> list[int]:
     return out
 
 
-def build(path: Path, dynamics: str = "benchmark", body: str | None = None):
+def build(path: Path, dynamics: str = "benchmark", body: str | None = None, angle: str | None = None):
     """The object of an MJCF file as links and joints in the object frame at
     qpos0: every top-level subtree with a hinge or slide joint, or only the
-    subtree of the named ``body`` (one appliance out of a scene)."""
+    subtree of the named ``body`` (one appliance out of a scene); ``angle``
+    as [`compile_mjcf`] takes it."""
     mujoco = _mujoco()
-    m = compile_mjcf(path)
+    m = compile_mjcf(path, angle)
     d = mujoco.MjData(m)
     d.qpos[:] = m.qpos0
     mujoco.mj_kinematics(m, d)
@@ -483,15 +503,18 @@ def import_mjcf(
     dynamics: str = "benchmark",
     force: bool = False,
     body: str | None = None,
+    angle: str | None = None,
 ) -> Imported:
-    """Imports one MJCF file to ``out/NAME`` (NAME: the file's stem by default)."""
+    """Imports one MJCF file to ``out/NAME`` (NAME: the file's stem by
+    default); ``angle``: the unit of its angles where a model that includes
+    it sets it ([`compile_mjcf`])."""
     path = Path(path)
     name = _safe(name or body or path.stem)
     if not (math.isfinite(size) and 0.01 <= size <= 100.0):
         raise ImportFailed(f"--size {size}: expected metres in [0.01, 100]")
     if not (math.isfinite(yaw_deg) and -360.0 <= yaw_deg <= 360.0):
         raise ImportFailed(f"--yaw {yaw_deg}: expected degrees in [-360, 360]")
-    links, joints, dropped, warnings = build(path, dynamics, body)
+    links, joints, dropped, warnings = build(path, dynamics, body, angle)
     bounds = _bounds(links)
     if bounds is None:
         raise ImportFailed(f"{path}: no visible geometry on the articulated bodies")
@@ -557,6 +580,8 @@ def import_mjcf(
         "moveable_link": {},
         "source": {"format": "mjcf", "file": str(path), "importer": "umpnet.objects"},
     }
+    if angle is not None:
+        meta["source"]["angle"] = angle
     (dest / "object_meta_info.json").write_text(json.dumps(meta, indent=2) + "\n")
     _check_loads(urdf, scale)
     return Imported(
@@ -660,6 +685,13 @@ def main(argv: list[str] | None = None) -> int:
     one.add_argument("--name", help="the object's folder name (default: --body, else the file's stem)")
     one.add_argument("--body", help="import only this body's subtree (one appliance out of a scene file)")
     one.add_argument("--yaw", type=float, default=0.0, help="turn the object about z (degrees) to face -y")
+    one.add_argument(
+        "--angle",
+        choices=ANGLE_UNITS,
+        help="the unit of the file's angles where the model that includes it sets it "
+        "(robosuite's objects: radian, from its <compiler angle=\"radian\"/>); default: the file's own, "
+        "MuJoCo's degrees where it says nothing",
+    )
     sub.add_parser(
         "metaworld",
         parents=[common],
@@ -669,7 +701,8 @@ def main(argv: list[str] | None = None) -> int:
     kw = {"size": a.size, "dynamics": a.dynamics, "force": a.force}
     try:
         if a.command == "import-mjcf":
-            imported, skipped = [import_mjcf(a.file, a.out, a.name, yaw_deg=a.yaw, body=a.body, **kw)], []
+            imported = [import_mjcf(a.file, a.out, a.name, yaw_deg=a.yaw, body=a.body, angle=a.angle, **kw)]
+            skipped = []
         else:
             imported, skipped = import_folder(metaworld_objects_dir(), a.out, **kw)
             if not imported:
