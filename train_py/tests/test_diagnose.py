@@ -71,3 +71,11 @@ def test_the_same_seed_gives_the_same_report(package):
         return diagnose.run(policy, "train", "exploration", 3, 3, "reference", n=2, memory=memory).summary()
 
     assert once() == once()
+
+
+def test_a_filter_that_does_not_serve_the_task_is_refused_by_name(package, capsys):
+    for flag, name in (("--explore-filter", "goal45"), ("--goal-filter", "onward45")):
+        with pytest.raises(SystemExit) as e:
+            diagnose.main([str(package), flag, name])
+        assert e.value.code == 2
+        assert flag in capsys.readouterr().err

@@ -52,6 +52,9 @@ BUDGETS = {name: budget for name, _, budget in umpnet.categories()}
 # Training environments take seeds seed*1000 + epoch + i; these never collide.
 SEED_OFFSET = 7_000_000
 SPLITS = {"train": TRAIN_CATEGORIES, "test": TEST_CATEGORIES}
+# The runtime's direction filters that serve each task (`umpnet explore --help`).
+EXPLORE_FILTERS = ("none", "normal90", "prev90", "joint45", "onward45")
+GOAL_FILTERS = ("none", "normal90", "joint45", "goal45")
 
 
 @dataclass
@@ -377,12 +380,12 @@ def main(argv=None) -> int:
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument(
         "--explore-filter",
-        metavar="FILTER",
+        choices=EXPLORE_FILTERS,
         help="decide exploring as `umpnet eval --direction-filter FILTER` does, with the episode's memory "
         "(e.g. onward45); the chosen direction's progress is then the policy's, not the networks' alone",
     )
     p.add_argument(
-        "--goal-filter", metavar="FILTER", help="the same toward a goal (e.g. goal45), in the swap table too"
+        "--goal-filter", choices=GOAL_FILTERS, help="the same toward a goal (e.g. goal45), in the swap table too"
     )
     a = p.parse_args(argv)
     if a.episodes < 1:
