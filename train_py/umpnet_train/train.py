@@ -344,7 +344,8 @@ def evaluate(model, cfg, out: Path, umpnet_bin: str, writer, epoch: int):
     for split, tasks in report["splits"].items():
         for task in ("exploration", "goal"):
             for key, value in tasks[task].items():
-                if key not in ("episodes", "states", "success") and value is not None:
+                # Scalars only: the intervals and the AoT confusion are lists.
+                if key not in ("episodes", "states", "success") and isinstance(value, (int, float)):
                     writer.add_scalar(f"diagnose/{split}/{task}/{key}", value, epoch)
         for combo, value in tasks["swap"].items():
             if value is not None:
