@@ -237,6 +237,32 @@ def test_angle_units_follow_the_file_unless_the_including_model_sets_them(tmp_pa
     assert p.returncode == 2 and "--angle" in p.stderr and "radian" in p.stderr
 
 
+def test_a_folder_imports_its_articulated_files_and_says_why_it_skipped_the_rest(tmp_path):
+    src = tmp_path / "objects"
+    src.mkdir()
+    (src / "door.xml").write_text(
+        '<mujoco model="door"><worldbody><body name="frame"><geom type="box" size=".02 .02 .3"/>'
+        '<body name="panel" pos=".25 0 0"><joint name="hinge" type="hinge" axis="0 0 1" range="0 0.4"/>'
+        '<geom type="box" size=".22 .02 .29"/></body></body></worldbody></mujoco>'
+    )
+    (src / "can.xml").write_text(
+        '<mujoco model="can"><worldbody><body name="can"><geom type="cylinder" size=".03 .06"/></body>'
+        "</worldbody></mujoco>"
+    )
+    p = importer("import-folder", src, "--out", tmp_path / "out", "--angle", "radian", "--yaw", "90", "--json")
+    report = json.loads(p.stdout)
+    assert [i["name"] for i in report["imported"]] == ["door"]
+    assert report["imported"][0]["joints"][0]["upper"] == pytest.approx(0.4, abs=1e-6)
+    assert [s["file"] for s in report["skipped"]] == ["can.xml"] and "hinge or slide" in report["skipped"][0]["why"]
+    meta = json.loads((tmp_path / "out" / "door" / "object_meta_info.json").read_text())
+    assert meta["orientation"] == pytest.approx([0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)])
+    (src / "door.xml").unlink()
+    p = importer("import-folder", src, "--out", tmp_path / "out2", check=False)
+    assert p.returncode == 1 and "no articulated object among its 1 MJCF files" in p.stderr
+    p = importer("import-folder", tmp_path / "nowhere", "--out", tmp_path / "out3", check=False)
+    assert p.returncode == 1 and "no such folder" in p.stderr
+
+
 def _without_wall_time(path: Path) -> dict:
     r = json.loads(path.read_text())
     r["summary"].pop("wall_seconds")

@@ -680,18 +680,26 @@ def main(argv: list[str] | None = None) -> int:
     )
     common.add_argument("--force", action="store_true", help="replace an object already in --out")
     common.add_argument("--json", action="store_true", help="print what was done as JSON")
-    one = sub.add_parser("import-mjcf", parents=[common], help="import one MJCF file")
-    one.add_argument("file", type=Path, help="an MJCF file, or a <mujocoinclude> fragment")
-    one.add_argument("--name", help="the object's folder name (default: --body, else the file's stem)")
-    one.add_argument("--body", help="import only this body's subtree (one appliance out of a scene file)")
-    one.add_argument("--yaw", type=float, default=0.0, help="turn the object about z (degrees) to face -y")
-    one.add_argument(
+    placing = argparse.ArgumentParser(add_help=False)
+    placing.add_argument("--yaw", type=float, default=0.0, help="turn the object about z (degrees) to face -y")
+    placing.add_argument(
         "--angle",
         choices=ANGLE_UNITS,
         help="the unit of the file's angles where the model that includes it sets it "
         "(robosuite's objects: radian, from its <compiler angle=\"radian\"/>); default: the file's own, "
         "MuJoCo's degrees where it says nothing",
     )
+    one = sub.add_parser("import-mjcf", parents=[common, placing], help="import one MJCF file")
+    one.add_argument("file", type=Path, help="an MJCF file, or a <mujocoinclude> fragment")
+    one.add_argument("--name", help="the object's folder name (default: --body, else the file's stem)")
+    one.add_argument("--body", help="import only this body's subtree (one appliance out of a scene file)")
+    folder = sub.add_parser(
+        "import-folder",
+        parents=[common, placing],
+        help="import every articulated object among the MJCF files directly in a folder "
+        "(e.g. robosuite's models/assets/objects with --angle radian --yaw 90)",
+    )
+    folder.add_argument("folder", type=Path, help="a folder of MJCF files; the others are skipped with the reason")
     sub.add_parser(
         "metaworld",
         parents=[common],
@@ -703,6 +711,12 @@ def main(argv: list[str] | None = None) -> int:
         if a.command == "import-mjcf":
             imported = [import_mjcf(a.file, a.out, a.name, yaw_deg=a.yaw, body=a.body, angle=a.angle, **kw)]
             skipped = []
+        elif a.command == "import-folder":
+            if not a.folder.is_dir():
+                raise ImportFailed(f"{a.folder}: no such folder")
+            imported, skipped = import_folder(a.folder, a.out, yaw_deg=a.yaw, angle=a.angle, **kw)
+            if not imported:
+                raise ImportFailed(f"{a.folder}: no articulated object among its {len(skipped)} MJCF files")
         else:
             imported, skipped = import_folder(metaworld_objects_dir(), a.out, **kw)
             if not imported:
