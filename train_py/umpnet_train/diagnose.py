@@ -152,7 +152,6 @@ class Episodes:
         self.policies = [
             umpnet.Policy(str(package), seed=seed, threads=threads, direction_filter=direction_filter) for _ in range(n)
         ]
-        self.resolution = self.policies[0].resolution
         self.stream = np.random.default_rng(seed)
 
     def start(self) -> None:
