@@ -780,3 +780,16 @@ def test_a_shipped_package_is_what_its_committed_checkpoints_export(tmp_path, pa
         )
         for a, b in zip(ours, theirs, strict=True):
             np.testing.assert_allclose(a, b, atol=1e-4, err_msg=f"{package}/{net}.onnx")
+
+
+def test_a_checkpoint_without_optimiser_state_resumes_at_its_scheduled_rate(tmp_path, capsys):
+    """umpnet_train.candidates drops Adam's state from the checkpoints it writes."""
+    out = tmp_path / "run"
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "2"]) == 0
+    ck = torch.load(out / "checkpoint.pt", map_location="cpu", weights_only=False)
+    del ck["optimizer"], ck["scheduler"]
+    torch.save(ck, out / "checkpoint.pt")
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "3", "--resume"]) == 0
+    assert "no optimiser state" in capsys.readouterr().err
+    resumed = torch.load(out / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert resumed["epoch"] == 3 and "optimizer" in resumed

@@ -394,8 +394,16 @@ def main(argv=None) -> int:
         if dataclasses.asdict(saved) != dataclasses.asdict(cfg):
             print("warning: resuming with a configuration different from the checkpoint's", file=sys.stderr)
         model.load_state_dict(ck["model"])
-        opt.load_state_dict(ck["optimizer"])
-        sched.load_state_dict(ck["scheduler"])
+        if "optimizer" in ck:
+            opt.load_state_dict(ck["optimizer"])
+            sched.load_state_dict(ck["scheduler"])
+        else:
+            # A fine-tuned checkpoint (umpnet_train.candidates) keeps no Adam
+            # state: Adam starts afresh, at the learning rate the schedule has reached.
+            sched.last_epoch = ck["epoch"]
+            for group in opt.param_groups:
+                group["lr"] = cfg.lr * cfg.lr_decay ** (ck["epoch"] // cfg.lr_decay_every)
+            print("note: the checkpoint has no optimiser state; Adam starts afresh", file=sys.stderr)
         if args.restart_lr is not None:
             for group in opt.param_groups:
                 group["lr"] = args.restart_lr
