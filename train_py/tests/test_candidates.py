@@ -65,6 +65,16 @@ def test_fine_tuning_raises_held_out_accuracy_and_leaves_the_position_net(steeri
     assert (tmp_path / "pkg" / "model.json").is_file()
 
 
+def test_files_with_different_candidate_counts_merge_padded(data):
+    narrow = {k: v[:, :3] if k in ("candidates", "aot", "dist") else v for k, v in data.items()}
+    merged = candidates.merge([narrow, data])
+    states, k = len(data["mode"]) * 2, data["candidates"].shape[1]
+    assert merged["candidates"].shape == (states, k, 3) and merged["aot"].shape == (states, k)
+    half = len(data["mode"])
+    assert np.isnan(merged["candidates"][:half, 3:]).all() and (merged["aot"][:half, 3:] == 2).all()
+    assert np.array_equal(merged["aot"][half:], data["aot"]) and (merged["dist"][:half, 3:] == 0).all()
+
+
 def test_bad_input_is_refused_by_name(tmp_path, capsys):
     with pytest.raises(SystemExit):
         candidates.main(["collect", str(tmp_path), str(tmp_path / "x.npz")])

@@ -280,6 +280,24 @@ def load(path: Path) -> dict:
         return {k: f[k] for k in f.files}
 
 
+def merge(parts: list[dict]) -> dict:
+    """Several `collect` outputs as one; files whose states had different
+    numbers of candidates are padded to the widest."""
+    k = max(d["candidates"].shape[1] for d in parts)
+    pad = {"candidates": np.nan, "aot": 2, "dist": 0.0}
+    out = {}
+    for key in parts[0]:
+        if key not in pad:
+            out[key] = np.concatenate([d[key] for d in parts])
+            continue
+        padded = []
+        for d in parts:
+            widths = [(0, 0), (0, k - d[key].shape[1])] + [(0, 0)] * (d[key].ndim - 2)
+            padded.append(np.pad(d[key], widths, constant_values=pad[key]))
+        out[key] = np.concatenate(padded)
+    return out
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
@@ -311,19 +329,7 @@ def main(argv=None) -> int:
             p.error(f"{path}: no such file")
     if a.export is not None and a.base is None:
         p.error("--export needs --base (the package whose joint net and grasp rule to keep)")
-    parts = [load(path) for path in a.data]
-    data = {k: np.concatenate([d[k] for d in parts]) if k != "candidates" else None for k in parts[0]}
-    k = max(d["candidates"].shape[1] for d in parts)
-    data["candidates"] = np.concatenate(
-        [
-            np.pad(d["candidates"], ((0, 0), (0, k - d["candidates"].shape[1]), (0, 0)), constant_values=np.nan)
-            for d in parts
-        ]
-    )
-    data["aot"] = np.concatenate(
-        [np.pad(d["aot"], ((0, 0), (0, k - d["aot"].shape[1])), constant_values=2) for d in parts]
-    )
-    data["dist"] = np.concatenate([np.pad(d["dist"], ((0, 0), (0, k - d["dist"].shape[1]))) for d in parts])
+    data = merge([load(path) for path in a.data])
     settings = Settings(**{name: getattr(a, name) for name in Settings().__dict__})
     path = finetune(a.checkpoint, data, a.out, settings)
     print(f"wrote {path}")
