@@ -18,9 +18,14 @@ reference training code's "moved" threshold, signed against the reference
 image's state (the start when exploring, the goal in the goal task).
 
     python -m umpnet_train.candidates collect ../models/umpnet-small ../runs/cands.npz --episodes 400
-    python -m umpnet_train.candidates finetune CKPT ../runs/cands.npz ../runs/cand-ft --steps 2000 --export ../runs/pkg
+    python -m umpnet_train.candidates finetune CKPT ../runs/cands.npz ../runs/cand-ft --steps 2000 \
+        --export ../runs/pkg --base ../models/umpnet-small
 
 The test categories are never collected: they stay for diagnose and eval.
+The natural frequencies have a cost: the paper's goal policy stops when no
+candidate is called toward the goal, and on objects unlike the training
+ones a head that calls more candidates still stops it sooner
+(docs/training.md, "Candidate relabelling").
 """
 
 from __future__ import annotations
