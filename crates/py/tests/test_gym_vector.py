@@ -315,7 +315,15 @@ def test_the_shipped_policy_through_gym_makes_the_moves_umpnet_eval_made(task, d
         assert len(moves) == len(recorded), (e["category"], e["index"], len(moves), len(recorded))
         assert np.allclose(moves, recorded, atol=1e-5) if recorded else True
         if task == "goal":
-            assert bool(info["success"]) == ep["metrics"]["success"]
+            # Two successes: the env's ends the episode by the protocol (within
+            # the threshold of the goal, or across it); eval's metric is also the
+            # paper's, a final normalised distance under 0.1, which an episode
+            # the policy stopped or the budget ended can meet without the first.
+            goal = ep["scene"]["goal"]
+            start, target = ep["scene"]["joints"][goal["joint"]], goal["joints"][goal["joint"]]
+            joints = info.get("joints", ep["scene"]["joints"])  # no move made: where the scene began
+            final = abs(joints[goal["joint"]] - target) / max(abs(target - start), 1e-6)
+            assert (bool(info["success"]) or final < 0.1) == ep["metrics"]["success"], (e["category"], e["index"])
         compared += len(recorded)
     assert compared >= 9  # the episodes made moves, not only grasps
 
