@@ -65,6 +65,32 @@ def test_fine_tuning_raises_held_out_accuracy_and_leaves_the_position_net(steeri
     assert (tmp_path / "pkg" / "model.json").is_file()
 
 
+def test_a_last_partial_batch_records_only_the_episodes_asked_for(steering, data):
+    # Two episodes of four environments: the third and fourth run (so the
+    # others see the same scenes and decisions) but none of their states is kept.
+    fewer = candidates.collect(steering / "pkg", episodes=2, seed=2, n=4, log=lambda *_: None)
+    assert 0 < len(fewer["mode"]) < len(data["mode"])
+    kept = {data["image"][i].tobytes() + data["candidates"][i].tobytes() for i in range(len(data["mode"]))}
+    assert all(
+        fewer["image"][i].tobytes() + fewer["candidates"][i].tobytes() in kept for i in range(len(fewer["mode"]))
+    )
+
+
+def test_a_zero_still_weight_scores_only_the_candidates_that_move(steering, data):
+    ck = torch.load(steering / "checkpoint.pt", map_location="cpu", weights_only=False)
+    model, _ = fixture.steering_model()
+    model.load_state_dict(ck["model"])
+    model.eval()
+    moving = data["aot"].copy()
+    moving[moving == 0] = 2  # still candidates marked as padding
+    assert (moving != 2).any() and (data["aot"] == 0).any()
+    with torch.no_grad():
+        weighted = candidates.candidate_losses(model, data, 100.0, still_weight=0.0)["loss/aot"]
+        only_moving = candidates.candidate_losses(model, {**data, "aot": moving}, 100.0)["loss/aot"]
+        natural = candidates.candidate_losses(model, data, 100.0)["loss/aot"]
+    assert torch.isclose(weighted, only_moving, rtol=1e-5) and not torch.isclose(weighted, natural, rtol=1e-3)
+
+
 def test_files_with_different_candidate_counts_merge_padded(data):
     narrow = {k: v[:, :3] if k in ("candidates", "aot", "dist") else v for k, v in data.items()}
     merged = candidates.merge([narrow, data])
@@ -82,3 +108,8 @@ def test_bad_input_is_refused_by_name(tmp_path, capsys):
     with pytest.raises(SystemExit):
         candidates.main(["finetune", str(tmp_path / "missing.pt"), str(tmp_path / "d.npz"), str(tmp_path / "run")])
     assert "missing.pt: no such file" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        candidates.main(
+            ["finetune", str(tmp_path / "c.pt"), str(tmp_path / "d.npz"), str(tmp_path / "r"), "--still-weight", "0"]
+        )
+    assert "--still-weight" in capsys.readouterr().err

@@ -46,7 +46,7 @@ import umpnet
 
 from .collect import TRAIN_CATEGORIES, device, to_long, to_torch
 from .config import config_from_checkpoint
-from .diagnose import BUDGETS, true_aot
+from .diagnose import episode_setup, true_aot
 from .export import export_model
 from .models import UMPNet
 
@@ -65,6 +65,10 @@ class Settings:
     batch_states: int = 16
     lr: float = 1e-4
     dist_loss_weight: float = 100.0  # as training's (config.dist_loss_weight)
+    # The still class's weight in the cross-entropy: 1 keeps the natural
+    # frequencies; below 1 leans the head toward calling a move, which the
+    # paper's goal policy needs to keep going on unfamiliar objects.
+    still_weight: float = 1.0
     seed: int = 0
     threads: int = 2
 
@@ -79,7 +83,7 @@ def collect(package: Path, episodes: int, seed: int = 0, epsilon: float = 0.2, n
     padded), their AoT (-1, 0, +1; 2 where padded) and distance moved."""
     policy = umpnet.Policy(str(package), seed=seed, threads=1)
     rng = np.random.default_rng(seed)
-    rows: dict[str, list] = {k: [] for k in ("image", "reference", "pixel", "mode", "candidates", "aot", "dist")}
+    rows: list[dict] = []  # one per state, each array with a leading axis of 1
     for t_i, task in enumerate(TASKS):
         env = umpnet.VecEnv(
             n, category=TRAIN_CATEGORIES, split="train", seed=SEED_OFFSET + seed * 1000 + t_i,
@@ -94,18 +98,12 @@ def collect(package: Path, episodes: int, seed: int = 0, epsilon: float = 0.2, n
                 policy.position(obs["image"][i], obs["reference"][i] if task == "goal" else None) for i in range(n)
             ]
             obs, info = env.step_position(np.array(pixels, np.int64))
-            joint = np.array(info["joint"])
-            start = np.array([s["joints"][j] if j >= 0 else 0.0 for s, j in zip(scenes, joint, strict=True)])
-            goal = np.array(
-                [
-                    s["goal"]["joints"][j] if task == "goal" and j >= 0 else np.nan
-                    for s, j in zip(scenes, joint, strict=True)
-                ]
-            )
+            start, goal, budget = episode_setup(scenes, np.array(info["joint"]), task)
             ref_value = goal if task == "goal" else start
             value = start.copy()
+            # The last batch runs all n environments but records only the episodes asked for.
+            counted = np.arange(n) < episodes - done
             live = np.array(info["valid"], bool)
-            budget = np.array([BUDGETS[s["category"]] for s in scenes])
             for t in range(int(budget.max())):
                 live &= t < budget
                 if not live.any():
@@ -119,17 +117,21 @@ def collect(package: Path, episodes: int, seed: int = 0, epsilon: float = 0.2, n
                     cand[i, : len(c)] = c
                     cand[i, len(c) :] = c[0] if len(c) else (0.0, 0.0, 1.0)
                 probed = env.probe_directions(cand)
-                for i in np.flatnonzero(live & np.asarray(probed["active"])):
+                for i in np.flatnonzero(live & counted & np.asarray(probed["active"])):
                     m = len(res[i]["candidates"])
                     after = probed["joint_after"][i, :m].astype(np.float64)
                     aot = true_aot(value[i], after, ref_value[i], probed["train_moved"][i, :m])
-                    rows["image"].append(obs["image"][i].astype(np.float16))
-                    rows["reference"].append(obs["reference"][i].astype(np.float16))
-                    rows["pixel"].append(pix[i].astype(np.int16))
-                    rows["mode"].append(int(task == "goal"))
-                    rows["candidates"].append(cand[i, :m])
-                    rows["aot"].append(aot.astype(np.int8))
-                    rows["dist"].append(probed["r_dist"][i, :m].astype(np.float32))
+                    rows.append(
+                        {
+                            "image": obs["image"][i][None].astype(np.float16),
+                            "reference": obs["reference"][i][None].astype(np.float16),
+                            "pixel": pix[i][None].astype(np.int16),
+                            "mode": np.array([task == "goal"], np.int8),
+                            "candidates": cand[None, i, :m],
+                            "aot": aot[None].astype(np.int8),
+                            "dist": probed["r_dist"][None, i, :m].astype(np.float32),
+                        }
+                    )
                 dirs = np.array([r["direction"] or [0.0, 0.0, 1.0] for r in res], np.float32)
                 live &= np.array([r["direction"] is not None for r in res])
                 explore = rng.random(n) < epsilon
@@ -139,38 +141,25 @@ def collect(package: Path, episodes: int, seed: int = 0, epsilon: float = 0.2, n
                         dirs[i] = cand[i, rng.integers(m)]
                 obs, _, sinfo = env.step_direction(dirs)
                 value = np.where(live, np.asarray(sinfo["joint_after"], np.float64), value)
-            done += n
-            log(f"{task}: {min(done, episodes)}/{episodes} episodes, {len(rows['mode'])} states")
-    if not rows["mode"]:
+            done = min(done + n, episodes)
+            log(f"{task}: {done}/{episodes} episodes, {len(rows)} states")
+    if not rows:
         raise ValueError(f"{package}: no grasp held in {episodes} episodes per task, so no candidate to label")
-    k = max(len(c) for c in rows["candidates"])
-    s = len(rows["candidates"])
-    cands = np.full((s, k, 3), np.nan, np.float32)
-    aot = np.full((s, k), 2, np.int8)
-    dist = np.zeros((s, k), np.float32)
-    for i, (c, a, d) in enumerate(zip(rows["candidates"], rows["aot"], rows["dist"], strict=True)):
-        cands[i, : len(c)], aot[i, : len(a)], dist[i, : len(d)] = c, a, d
-    return {
-        "image": np.stack(rows["image"]),
-        "reference": np.stack(rows["reference"]),
-        "pixel": np.stack(rows["pixel"]),
-        "mode": np.array(rows["mode"], np.int8),
-        "candidates": cands,
-        "aot": aot,
-        "dist": dist,
-    }
+    return merge(rows)
 
 
-def candidate_losses(model: UMPNet, batch: dict, dist_loss_weight: float) -> dict:
-    """Cross-entropy of the AoT head over every real candidate, at the classes'
-    natural frequencies, plus training's distance regression."""
+def candidate_losses(model: UMPNet, batch: dict, dist_loss_weight: float, still_weight: float = 1.0) -> dict:
+    """Cross-entropy of the AoT head over every real candidate, the still
+    class weighted by `still_weight` (1: the natural frequencies), plus
+    training's distance regression."""
     k = batch["candidates"].shape[1]
     de, ae = model.encoder(to_torch(batch["image"]), to_torch(batch["reference"]), to_long(batch["pixel"]))
     dirs = np.nan_to_num(batch["candidates"].reshape(-1, 3), nan=0.0)
     pred_dist, logits = model.decoder(de.repeat_interleave(k, 0), ae.repeat_interleave(k, 0), to_torch(dirs))
     real = torch.from_numpy(batch["aot"].reshape(-1) != 2).to(device())
     target = to_long(np.where(batch["aot"].reshape(-1) == 2, 1, batch["aot"].reshape(-1) + 1))
-    aot = F.cross_entropy(logits[real], target[real])
+    weight = torch.tensor([1.0, still_weight, 1.0], device=logits.device)
+    aot = F.cross_entropy(logits[real], target[real], weight=weight)
     dist = F.mse_loss(pred_dist[real], to_torch(batch["dist"].reshape(-1))[real])
     return {
         "loss/aot": aot,
@@ -208,7 +197,7 @@ def finetune(checkpoint: Path, data: dict, out: Path, s: Settings, log=print) ->
         with torch.no_grad():
             for i in range(0, len(held), 64):
                 b = batch(held[i : i + 64])
-                scored = candidate_losses(model, b, s.dist_loss_weight)
+                scored = candidate_losses(model, b, s.dist_loss_weight, s.still_weight)
                 n = int((b["aot"] != 2).sum())
                 hits, total = hits + float(scored["metric/aot_accuracy"]) * n, total + n
         model.train()
@@ -219,7 +208,7 @@ def finetune(checkpoint: Path, data: dict, out: Path, s: Settings, log=print) ->
     t0 = time.perf_counter()
     model.train()
     for step in range(1, s.steps + 1):
-        losses = candidate_losses(model, batch(rng.choice(train, s.batch_states)), s.dist_loss_weight)
+        losses = candidate_losses(model, batch(rng.choice(train, s.batch_states)), s.dist_loss_weight, s.still_weight)
         opt.zero_grad()
         losses["loss/total"].backward()
         opt.step()
@@ -329,6 +318,8 @@ def main(argv=None) -> int:
         save(collect(a.package, a.episodes, a.seed, a.epsilon), a.out)
         print(f"wrote {a.out}")
         return 0
+    if not a.still_weight > 0 or a.steps < 1 or a.batch_states < 1 or not a.lr > 0:
+        p.error("--still-weight and --lr must be positive, --steps and --batch-states at least 1")
     for path in [a.checkpoint, *a.data]:
         if not path.is_file():
             p.error(f"{path}: no such file")

@@ -179,6 +179,18 @@ class Episodes:
         return out
 
 
+def episode_setup(scenes, joint, task):
+    """Per environment, from its scene and the joint its grasp holds (-1 for
+    none): the joint's start value, its goal value (NaN unless `task` is goal)
+    and the category's move budget."""
+    start = np.array([s["joints"][j] if j >= 0 else 0.0 for s, j in zip(scenes, joint, strict=True)])
+    goal = np.array(
+        [s["goal"]["joints"][j] if task == "goal" and j >= 0 else np.nan for s, j in zip(scenes, joint, strict=True)]
+    )
+    budget = np.array([BUDGETS[s["category"]] for s in scenes])
+    return start, goal, budget
+
+
 def run(
     policy, split, task, episodes, seed, physics, position="learned", direction="learned", probe=True, n=8, memory=None
 ):
@@ -215,15 +227,8 @@ def run(
         valid = np.array(info["valid"], bool)
         thr = np.asarray(info["threshold"], np.float64)
         lower, upper = np.asarray(info["limits"], np.float64).T
-        start = np.array([s["joints"][j] if j >= 0 else 0.0 for s, j in zip(scenes, joint, strict=True)])
-        goal = np.array(
-            [
-                s["goal"]["joints"][j] if task == "goal" and j >= 0 else np.nan
-                for s, j in zip(scenes, joint, strict=True)
-            ]
-        )
+        start, goal, budget = episode_setup(scenes, joint, task)
         value = start.copy()
-        budget = np.array([BUDGETS[s["category"]] for s in scenes])
         live = valid.copy()
         success = np.zeros(n, bool)
         for t in range(int(budget.max())):
