@@ -25,7 +25,7 @@ The test categories are never collected: they stay for diagnose and eval.
 The natural frequencies have a cost: the paper's goal policy stops when no
 candidate is called toward the goal, and on objects unlike the training
 ones a head that calls more candidates still stops it sooner
-(docs/training.md, "Candidate relabelling").
+(docs/relabelling.md).
 """
 
 from __future__ import annotations
@@ -226,7 +226,8 @@ def finetune(checkpoint: Path, data: dict, out: Path, s: Settings, log=print) ->
         {
             "from_epoch": ck.get("epoch"),
             "what": "candidate relabelling (umpnet_train.candidates): the direction nets fine-tuned on the CEM "
-            "candidates of the package's own policy, labelled by simulation, at natural class frequencies",
+            "candidates of the package's own policy, labelled by simulation, the still class weighted by "
+            "settings.still_weight (1: natural class frequencies)",
             "states": len(data["mode"]),
             "labels": int((data["aot"] != 2).sum()),
             "settings": s.__dict__,
