@@ -12,8 +12,9 @@ So this collects exactly that distribution, as DAgger does: the package's own
 policy runs the training categories' training instances (on seeds neither
 training nor diagnose uses), and at every state each CEM candidate is
 simulated on a copy of the articulation (VecEnv.probe_directions). The
-direction nets are then fine-tuned on those labels at their natural class
-frequencies, the position net untouched. The labels are diagnose's: the
+direction nets are then fine-tuned on those labels, the still class weighted
+by --still-weight (1: the natural class frequencies), the position net
+untouched. The labels are diagnose's: the
 reference training code's "moved" threshold, signed against the reference
 image's state (the start when exploring, the goal in the goal task).
 
@@ -24,7 +25,8 @@ image's state (the start when exploring, the goal in the goal task).
 The test categories are never collected: they stay for diagnose and eval.
 The natural frequencies have a cost: the paper's goal policy stops when no
 candidate is called toward the goal, and on objects unlike the training
-ones a head that calls more candidates still stops it sooner
+ones a head that calls more candidates still stops it sooner; a still
+weight below 1 (the shipped package's 0.5) leans it back toward moving
 (docs/relabelling.md).
 """
 
