@@ -76,6 +76,19 @@ def test_a_last_partial_batch_records_only_the_episodes_asked_for(steering, data
     )
 
 
+def test_another_dataset_seed_collects_other_instances(steering, data, tmp_path, capsys):
+    # The same scene seeds on another generated dataset: the same families,
+    # other instances, so no state's image is one of dataset 0's.
+    other = candidates.collect(steering / "pkg", episodes=4, seed=2, n=4, dataset_seed=1, log=lambda *_: None)
+    assert len(other["mode"]) > 0
+    seen = {data["image"][i].tobytes() for i in range(len(data["mode"]))}
+    assert not any(other["image"][i].tobytes() in seen for i in range(len(other["mode"])))
+    with pytest.raises(SystemExit):
+        candidates.main(["collect", str(steering / "pkg"), str(tmp_path / "x.npz"), "--dataset-seed", "-1"])
+    assert "--dataset-seed" in capsys.readouterr().err
+    assert not (tmp_path / "x.npz").exists()
+
+
 def test_a_zero_still_weight_scores_only_the_candidates_that_move(steering, data):
     ck = torch.load(steering / "checkpoint.pt", map_location="cpu", weights_only=False)
     model, _ = fixture.steering_model()

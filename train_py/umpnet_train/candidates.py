@@ -75,12 +75,16 @@ class Settings:
     threads: int = 2
 
 
-def collect(package: Path, episodes: int, seed: int = 0, epsilon: float = 0.2, n: int = 8, log=print) -> dict:
+def collect(
+    package: Path, episodes: int, seed: int = 0, epsilon: float = 0.2, n: int = 8, dataset_seed: int = 0, log=print
+) -> dict:
     """`episodes` per task on the training categories' training instances,
     the package's policy (the networks' own choice at each state, as the
     paper's) deciding; with probability `epsilon` a random one of its
     candidates is executed instead, so the states also cover the policy's
-    near misses. Returns arrays, one row per state: image and reference
+    near misses. `dataset_seed` picks the generated dataset the instances
+    come from (0: the one training and eval use; others draw new instances
+    of the same families). Returns arrays, one row per state: image and reference
     (float16), pixel, mode (0 explore, 1 goal), candidates (K x 3, NaN
     padded), their AoT (-1, 0, +1; 2 where padded) and distance moved."""
     policy = umpnet.Policy(str(package), seed=seed, threads=1)
@@ -89,7 +93,7 @@ def collect(package: Path, episodes: int, seed: int = 0, epsilon: float = 0.2, n
     for t_i, task in enumerate(TASKS):
         env = umpnet.VecEnv(
             n, category=TRAIN_CATEGORIES, split="train", seed=SEED_OFFSET + seed * 1000 + t_i,
-            resolution=policy.resolution, task=task, physics="reference",
+            resolution=policy.resolution, task=task, physics="reference", dataset_seed=dataset_seed,
         )  # fmt: skip
         mode = "goal" if task == "goal" else "explore"
         done = 0
@@ -304,6 +308,10 @@ def main(argv=None) -> int:
     c.add_argument("--episodes", type=int, default=400, help="per task")
     c.add_argument("--epsilon", type=float, default=0.2)
     c.add_argument("--seed", type=int, default=0)
+    c.add_argument(
+        "--dataset-seed", type=int, default=0,
+        help="the generated dataset the training instances come from (0: training's; others: new instances)",
+    )  # fmt: skip
     f = sub.add_parser("finetune", help="fine-tune a checkpoint's direction nets on collected candidates")
     f.add_argument("checkpoint", type=Path)
     f.add_argument("data", type=Path, nargs="+", help=".npz files from collect")
@@ -316,9 +324,9 @@ def main(argv=None) -> int:
     if a.command == "collect":
         if not (a.package / "model.json").is_file():
             p.error(f"{a.package}: not a model package (no model.json)")
-        if a.episodes < 1 or not 0.0 <= a.epsilon <= 1.0:
-            p.error("--episodes must be at least 1 and --epsilon within [0, 1]")
-        save(collect(a.package, a.episodes, a.seed, a.epsilon), a.out)
+        if a.episodes < 1 or not 0.0 <= a.epsilon <= 1.0 or a.dataset_seed < 0:
+            p.error("--episodes must be at least 1, --epsilon within [0, 1] and --dataset-seed not negative")
+        save(collect(a.package, a.episodes, a.seed, a.epsilon, dataset_seed=a.dataset_seed), a.out)
         print(f"wrote {a.out}")
         return 0
     if not a.still_weight > 0 or a.steps < 1 or a.batch_states < 1 or not a.lr > 0:
