@@ -297,6 +297,16 @@ def _kind(urdf: str, joint: str):
     return None
 
 
+def on_a_moving_part(urdf: str, joint: str) -> bool:
+    """Whether `joint`'s parent link is itself moved by a joint (a chain)."""
+    import xml.etree.ElementTree as ET
+
+    joints = list(ET.parse(urdf).getroot().iter("joint"))
+    movable = {j.find("child").get("link") for j in joints if j.get("type") != "fixed" and j.find("child") is not None}
+    parent = next((j.find("parent").get("link") for j in joints if j.get("name") == joint), None)
+    return parent in movable
+
+
 def _limits(urdf: str, joint: str) -> tuple[float, float]:
     import xml.etree.ElementTree as ET
 

@@ -98,6 +98,13 @@ GAPS = {
 }
 
 
+# A part hinged on a moving part (the TrashCan flap on its lid): the lid is
+# in the grasped chain, which umpnet solves alone and PyBullet with the whole
+# body, so the lid drifts apart by about 0.001 rad. A stated bound at about
+# 2.5x that, as for the families' other bounds.
+CHAIN_OTHER_JOINTS = 0.0025
+
+
 def _within(r, mean, worst, links, others=OTHER_JOINTS):
     """The failures of one result against its bounds, as text."""
     found = {
@@ -121,7 +128,8 @@ def _check_kinds(results, bounds, case_means=None):
             failures.append(f"{kind}: mean {mean:.5f} over {len(of_kind)} cases > {b.mean}")
         for r in of_kind:
             case_mean = (case_means or {}).get(r.case.name.split("/", 1)[-1], b.case_mean)
-            failures += _within(r, case_mean, b.max, b.links, b.other_joints)
+            others = CHAIN_OTHER_JOINTS if D.on_a_moving_part(r.case.urdf, r.case.joint) else b.other_joints
+            failures += _within(r, case_mean, b.max, b.links, others)
     assert not failures, "\n".join(failures)
 
 

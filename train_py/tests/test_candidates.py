@@ -126,3 +126,18 @@ def test_bad_input_is_refused_by_name(tmp_path, capsys):
             ["finetune", str(tmp_path / "c.pt"), str(tmp_path / "d.npz"), str(tmp_path / "r"), "--still-weight", "0"]
         )
     assert "--still-weight" in capsys.readouterr().err
+
+
+def test_categories_narrow_the_collection_and_refuse_test_categories(steering, data, tmp_path, capsys):
+    # The same scene seeds on one category: were the option ignored, the
+    # states would be the fixture's (all twelve categories) exactly.
+    kettles = candidates.collect(steering / "pkg", episodes=4, seed=2, n=4, categories=["Kettle"], log=lambda *_: None)
+    assert len(kettles["mode"]) > 0
+    seen = {data["image"][i].tobytes() for i in range(len(data["mode"]))}
+    assert not all(kettles["image"][i].tobytes() in seen for i in range(len(kettles["mode"])))
+    for bad, named in {"Oven": "Oven", "Kettle,Spaceship": "Spaceship", ",": "(empty)"}.items():
+        with pytest.raises(SystemExit):
+            candidates.main(["collect", str(steering / "pkg"), str(tmp_path / "x.npz"), "--categories", bad])
+        err = capsys.readouterr().err
+        assert f"--categories {named}: expected training categories" in err, err
+    assert not (tmp_path / "x.npz").exists()

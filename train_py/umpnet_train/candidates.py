@@ -76,7 +76,15 @@ class Settings:
 
 
 def collect(
-    package: Path, episodes: int, seed: int = 0, epsilon: float = 0.2, n: int = 8, dataset_seed: int = 0, log=print
+    package: Path,
+    episodes: int,
+    seed: int = 0,
+    epsilon: float = 0.2,
+    n: int = 8,
+    dataset_seed: int = 0,
+    categories: list[str] | None = None,
+    *,
+    log=print,
 ) -> dict:
     """`episodes` per task on the training categories' training instances,
     the package's policy (the networks' own choice at each state, as the
@@ -84,15 +92,18 @@ def collect(
     candidates is executed instead, so the states also cover the policy's
     near misses. `dataset_seed` picks the generated dataset the instances
     come from (0: the one training and eval use; others draw new instances
-    of the same families). Returns arrays, one row per state: image and reference
+    of the same families). `categories` narrows the training categories
+    (default: all twelve); a test category is refused, since its objects
+    are what the fine-tuned model is scored on. Returns arrays, one row per state: image and reference
     (float16), pixel, mode (0 explore, 1 goal), candidates (K x 3, NaN
     padded), their AoT (-1, 0, +1; 2 where padded) and distance moved."""
+    categories = training_categories(categories)
     policy = umpnet.Policy(str(package), seed=seed, threads=1)
     rng = np.random.default_rng(seed)
     rows: list[dict] = []  # one per state, each array with a leading axis of 1
     for t_i, task in enumerate(TASKS):
         env = umpnet.VecEnv(
-            n, category=TRAIN_CATEGORIES, split="train", seed=SEED_OFFSET + seed * 1000 + t_i,
+            n, category=categories, split="train", seed=SEED_OFFSET + seed * 1000 + t_i,
             resolution=policy.resolution, task=task, physics="reference", dataset_seed=dataset_seed,
         )  # fmt: skip
         mode = "goal" if task == "goal" else "explore"
@@ -152,6 +163,19 @@ def collect(
     if not rows:
         raise ValueError(f"{package}: no grasp held in {episodes} episodes per task, so no candidate to label")
     return merge(rows)
+
+
+def training_categories(categories: list[str] | None) -> list[str]:
+    """`categories`, checked to be training categories (all twelve for None)."""
+    if categories is None:
+        return list(TRAIN_CATEGORIES)
+    unknown = [c for c in categories if c not in TRAIN_CATEGORIES]
+    if unknown or not categories:
+        raise ValueError(
+            f"--categories {','.join(unknown) or '(empty)'}: expected training categories "
+            f"({', '.join(TRAIN_CATEGORIES)}); the test categories are never collected"
+        )
+    return categories
 
 
 def candidate_losses(model: UMPNet, batch: dict, dist_loss_weight: float, still_weight: float = 1.0) -> dict:
@@ -312,6 +336,10 @@ def main(argv=None) -> int:
         "--dataset-seed", type=int, default=0,
         help="the generated dataset the training instances come from (0: training's; others: new instances)",
     )  # fmt: skip
+    c.add_argument(
+        "--categories", type=lambda s: [c.strip() for c in s.split(",") if c.strip()],
+        help="comma-separated training categories to collect on (default: all twelve)",
+    )  # fmt: skip
     f = sub.add_parser("finetune", help="fine-tune a checkpoint's direction nets on collected candidates")
     f.add_argument("checkpoint", type=Path)
     f.add_argument("data", type=Path, nargs="+", help=".npz files from collect")
@@ -326,7 +354,14 @@ def main(argv=None) -> int:
             p.error(f"{a.package}: not a model package (no model.json)")
         if a.episodes < 1 or not 0.0 <= a.epsilon <= 1.0 or a.dataset_seed < 0:
             p.error("--episodes must be at least 1, --epsilon within [0, 1] and --dataset-seed not negative")
-        save(collect(a.package, a.episodes, a.seed, a.epsilon, dataset_seed=a.dataset_seed), a.out)
+        try:
+            training_categories(a.categories)
+        except ValueError as e:
+            p.error(str(e))
+        save(
+            collect(a.package, a.episodes, a.seed, a.epsilon, dataset_seed=a.dataset_seed, categories=a.categories),
+            a.out,
+        )
         print(f"wrote {a.out}")
         return 0
     if not a.still_weight > 0 or a.steps < 1 or a.batch_states < 1 or not a.lr > 0:

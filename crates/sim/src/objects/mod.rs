@@ -308,6 +308,61 @@ mod tests {
         }
     }
 
+    /// Whether a generated object has the mechanism `families::variants`
+    /// gives its category (none of the category's own recipes has it).
+    fn has_variant_mechanism(category: Category, model: &ObjectModel) -> bool {
+        let revolute_about_x = |min_x: f32| {
+            model.joints.iter().any(|j| {
+                j.kind == crate::model::JointKind::Revolute
+                    && j.axis_in_joint.x * min_x.signum() > min_x.abs()
+            })
+        };
+        match category {
+            // Flaps hinged at the top or bottom edge; the recipes hinge doors at a side.
+            Category::StorageFurniture | Category::Window => {
+                revolute_about_x(0.9) || revolute_about_x(-0.9)
+            }
+            // A bail handle turns about +x; the recipe's lid turns about -x.
+            Category::Kettle => revolute_about_x(0.9),
+            // A flap hinged on the lid.
+            Category::TrashCan => model.joints.iter().any(|j| j.parent != model.root),
+            _ => false,
+        }
+    }
+
+    #[test]
+    fn only_training_instances_draw_the_variant_mechanisms() {
+        for category in [
+            Category::StorageFurniture,
+            Category::Window,
+            Category::Kettle,
+            Category::TrashCan,
+        ] {
+            let (mut train, mut train_variants) = (0, 0);
+            for index in 0..60 {
+                let model = generate(category, index, 0).file_model().unwrap();
+                let variant = has_variant_mechanism(category, &model);
+                match instance_split(category, index) {
+                    InstanceSplit::Train => {
+                        train += 1;
+                        train_variants += usize::from(variant);
+                    }
+                    InstanceSplit::Test => {
+                        assert!(
+                            !variant,
+                            "{category} {index}: a held-out instance drew a variant"
+                        );
+                    }
+                }
+            }
+            let share = train_variants as f64 / train as f64;
+            assert!(
+                (0.2..0.6).contains(&share),
+                "{category}: {train_variants} of {train} training instances are variants"
+            );
+        }
+    }
+
     #[test]
     fn an_unknown_category_suggests_the_nearest_name_or_the_category_of_a_part() {
         assert!(refusal("Microwav").contains("(did you mean Microwave?)"));

@@ -6,14 +6,30 @@
 mod furniture;
 mod parts;
 mod small;
+mod variants;
 
 use super::Category;
 use super::builder::Parts;
 use parts::{R, u};
+use rand::Rng;
+
+/// A training instance of these categories is, with this probability, one
+/// of the mechanisms in `variants` instead of the category's recipe.
+const VARIANT_SHARE: f64 = 0.4;
 
 pub(crate) fn build(category: Category, rng: &mut R, test_instance: bool) -> Parts {
     let mut p = Parts::default();
+    // The variant draw has its own stream: an instance that keeps its recipe
+    // is the same object it was before the variants existed, and held-out
+    // instances never draw (their figures are the paper recipes').
+    let mut variant_rng = rng.clone();
+    variant_rng.set_stream(1);
+    let variant = !test_instance && variant_rng.random_bool(VARIANT_SHARE);
     match category {
+        Category::StorageFurniture if variant => variants::flap_cabinet(&mut p, &mut variant_rng),
+        Category::Window if variant => variants::hung_window(&mut p, &mut variant_rng),
+        Category::Kettle if variant => variants::bail_kettle(&mut p, &mut variant_rng),
+        Category::TrashCan if variant => variants::flap_lid_can(&mut p, &mut variant_rng),
         Category::Refrigerator => furniture::refrigerator(&mut p, rng),
         Category::FoldingChair => furniture::folding_chair(&mut p, rng),
         Category::Laptop => small::laptop(&mut p, rng),
