@@ -311,19 +311,17 @@ mod tests {
     /// Whether a generated object has the mechanism `families::variants`
     /// gives its category (none of the category's own recipes has it).
     fn has_variant_mechanism(category: Category, model: &ObjectModel) -> bool {
-        let revolute_about_x = |min_x: f32| {
-            model.joints.iter().any(|j| {
-                j.kind == crate::model::JointKind::Revolute
-                    && j.axis_in_joint.x * min_x.signum() > min_x.abs()
-            })
+        let revolute_with = |axis_x: fn(f32) -> bool| {
+            model
+                .joints
+                .iter()
+                .any(|j| j.kind == crate::model::JointKind::Revolute && axis_x(j.axis_in_joint.x))
         };
         match category {
             // Flaps hinged at the top or bottom edge; the recipes hinge doors at a side.
-            Category::StorageFurniture | Category::Window => {
-                revolute_about_x(0.9) || revolute_about_x(-0.9)
-            }
+            Category::StorageFurniture | Category::Window => revolute_with(|x| x.abs() > 0.9),
             // A bail handle turns about +x; the recipe's lid turns about -x.
-            Category::Kettle => revolute_about_x(0.9),
+            Category::Kettle => revolute_with(|x| x > 0.9),
             // A flap hinged on the lid.
             Category::TrashCan => model.joints.iter().any(|j| j.parent != model.root),
             _ => false,

@@ -6,6 +6,7 @@
 )]
 use super::super::builder::Parts;
 use super::parts::{Door, Drawer, FlapDoor, Hinge, R, T, body, bx, color, u, v};
+use crate::math::Vec3;
 use crate::model::JointKind::{Prismatic, Revolute};
 use rand::Rng;
 
@@ -297,24 +298,33 @@ pub(super) fn toilet(p: &mut Parts, rng: &mut R) {
     }
 }
 
+/// The width of a window frame's bars (m).
+pub(super) const WINDOW_FRAME: f32 = 0.05;
+
+/// A window's frame, `w` wide and `h` tall from `z0`, `d` deep, with the
+/// stand under it, as boxes.
+pub(super) fn window_frame(w: f32, h: f32, d: f32, z0: f32) -> Vec<(Vec3, Vec3)> {
+    let f = WINDOW_FRAME;
+    vec![
+        bx(v(-w / 2.0 + f / 2.0, 0.0, z0 + h / 2.0), v(f, d, h)),
+        bx(v(w / 2.0 - f / 2.0, 0.0, z0 + h / 2.0), v(f, d, h)),
+        bx(v(0.0, 0.0, z0 + f / 2.0), v(w, d, f)),
+        bx(v(0.0, 0.0, z0 + h - f / 2.0), v(w, d, f)),
+        bx(v(0.0, 0.0, z0 / 2.0), v(w * 0.6, d, z0)),
+    ]
+}
+
 pub(super) fn window(p: &mut Parts, rng: &mut R) {
     let (w, h, d, z0) = (u(rng, 0.8, 1.1), u(rng, 0.7, 0.95), 0.1, u(rng, 0.1, 0.3));
     let (cb, cp) = (color(rng), color(rng));
-    let f = 0.05;
-    let b = p.base(
-        &[
-            bx(v(-w / 2.0 + f / 2.0, 0.0, z0 + h / 2.0), v(f, d, h)),
-            bx(v(w / 2.0 - f / 2.0, 0.0, z0 + h / 2.0), v(f, d, h)),
-            bx(v(0.0, 0.0, z0 + f / 2.0), v(w, d, f)),
-            bx(v(0.0, 0.0, z0 + h - f / 2.0), v(w, d, f)),
-            bx(v(0.0, 0.0, z0 / 2.0), v(w * 0.6, d, z0)),
-            bx(
-                v(w / 4.0, 0.02, z0 + h / 2.0),
-                v(w / 2.0 - f, 0.02, h - 2.0 * f),
-            ),
-        ],
-        cb,
-    );
+    let f = WINDOW_FRAME;
+    let mut boxes = window_frame(w, h, d, z0);
+    // The fixed pane behind the sliding sash.
+    boxes.push(bx(
+        v(w / 4.0, 0.02, z0 + h / 2.0),
+        v(w / 2.0 - f, 0.02, h - 2.0 * f),
+    ));
+    let b = p.base(&boxes, cb);
     let (iw, ih) = (w - 2.0 * f, h - 2.0 * f);
     match rng.random_range(0..3) {
         0 => {

@@ -8,6 +8,7 @@
     reason = "the generator indexes parts it created itself; no input reaches it"
 )]
 use super::super::builder::Parts;
+use super::furniture::{WINDOW_FRAME, window_frame};
 use super::parts::{Drawer, FlapDoor, HANDLE, Lid, R, T, body, bx, color, u, v};
 use crate::model::JointKind::Revolute;
 use rand::Rng;
@@ -105,17 +106,8 @@ pub(super) fn flap_cabinet(p: &mut Parts, rng: &mut R) {
 pub(super) fn hung_window(p: &mut Parts, rng: &mut R) {
     let (w, h, d, z0) = (u(rng, 0.6, 1.0), u(rng, 0.5, 0.9), 0.1, u(rng, 0.1, 0.35));
     let (cb, cp) = (color(rng), color(rng));
-    let f = 0.05;
-    let b = p.base(
-        &[
-            bx(v(-w / 2.0 + f / 2.0, 0.0, z0 + h / 2.0), v(f, d, h)),
-            bx(v(w / 2.0 - f / 2.0, 0.0, z0 + h / 2.0), v(f, d, h)),
-            bx(v(0.0, 0.0, z0 + f / 2.0), v(w, d, f)),
-            bx(v(0.0, 0.0, z0 + h - f / 2.0), v(w, d, f)),
-            bx(v(0.0, 0.0, z0 / 2.0), v(w * 0.6, d, z0)),
-        ],
-        cb,
-    );
+    let f = WINDOW_FRAME;
+    let b = p.base(&window_frame(w, h, d, z0), cb);
     let x = (-w / 2.0 + f, w / 2.0 - f);
     let z = (z0 + f, z0 + h - f);
     if rng.random_bool(0.5) {
