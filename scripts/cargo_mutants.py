@@ -92,7 +92,12 @@ GROUPS = [
     Group(
         "policy",
         "umpnet-policy",
-        ["crates/policy/src/cem.rs", "crates/policy/src/policy.rs", "crates/policy/src/observation.rs"],
+        [
+            "crates/policy/src/cem.rs",
+            "crates/policy/src/policy.rs",
+            "crates/policy/src/filters.rs",
+            "crates/policy/src/observation.rs",
+        ],
         sorted(
             str(p.relative_to(ROOT))
             for d in ["crates/policy/tests", "crates/eval/tests"]

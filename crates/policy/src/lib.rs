@@ -6,6 +6,7 @@ pub mod axis;
 pub mod cem;
 /// Errors of the runtime: bad input, a bad package, ONNX Runtime failing.
 pub mod error;
+mod filters;
 pub mod frame_joint;
 pub mod goal_shift;
 pub mod memory;
