@@ -38,7 +38,7 @@ PREFIX ?= $(HOME)/.local
 install-cli: build
 	install -D -m 755 $(UMPNET) $(PREFIX)/bin/umpnet
 	mkdir -p $(PREFIX)/share/umpnet/models $(PREFIX)/lib/umpnet
-	cp -r models/umpnet-small $(PREFIX)/share/umpnet/models/
+	cp -r models/umpnet-gpu-medium $(PREFIX)/share/umpnet/models/
 	cp $$($(PY) -c "import onnxruntime, pathlib; print(sorted((pathlib.Path(onnxruntime.__file__).parent / 'capi').glob('libonnxruntime.so.1.*'))[-1])") $(PREFIX)/lib/umpnet/
 	@echo "installed $(PREFIX)/bin/umpnet$$(case :$$PATH: in *:$(PREFIX)/bin:*) ;; *) echo "; add $(PREFIX)/bin to PATH";; esac)"
 
@@ -46,7 +46,7 @@ install-cli: build
 fixture: install
 	cd train_py && ../.venv/bin/python -m umpnet_train.fixture $(FIXTURE)
 
-# The main job on the shipped defaults: the learned policy (models/umpnet-small)
+# The main job on the shipped defaults: the learned policy (models/umpnet-gpu-medium)
 # with pictures, then the benchmark against oracle and random, then speed figures.
 # The pictured episodes are seed 0 of their category, by rule, not chosen for
 # looking good; the benchmark's tables say how typical they are.

@@ -16,6 +16,9 @@ from PIL import Image
 
 ROOT = Path(__file__).resolve().parents[1]
 UMPNET = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
+# The default model package: the one the wheel ships (its `model` link), which
+# the binary also finds by default (test_the_binary_and_the_wheel_default_to_one_package).
+SHIPPED = (ROOT / "crates" / "py" / "python" / "umpnet" / "model").resolve()
 
 
 def run(*args, check=True):
@@ -436,7 +439,7 @@ def test_the_shipped_model_holds_its_reported_figure_and_weaker_models_do_not(ta
     figure model.json reports minus the 95% interval of this sample. A stale or
     mismatched export, or a model at the baselines' level, falls under it: the
     untrained fixture package and the best one-budget baseline are required to."""
-    shipped = ROOT / "models" / "umpnet-small"
+    shipped = SHIPPED
     metric = FLOORS[task]
     reported = json.loads((shipped / "model.json").read_text())["evaluation"][REPORTED[metric]]["test"]
     weaker = {"untrained": fixture_package, "aot-only": str(ROOT / "models" / "baselines" / "aot-only")}
@@ -452,6 +455,23 @@ def test_the_shipped_model_holds_its_reported_figure_and_weaker_models_do_not(ta
     for name in weaker:
         theirs, _ = _pooled(res["cells"], name, metric)
         assert theirs < floor, (name, theirs, floor)
+
+
+def test_the_binary_and_the_wheel_default_to_one_package(tmp_path):
+    """Without --model, `umpnet` runs the package the wheel ships as
+    `Policy.default()`, and says which one by its hash."""
+    assert (SHIPPED / "model.json").is_file() and SHIPPED.parent == ROOT / "models", SHIPPED
+    hashes = {}
+    for name, model in {
+        "default": [],
+        "wheel": ["--model", str(SHIPPED)],
+        "other": ["--model", str(ROOT / "models" / "umpnet-small")],
+    }.items():
+        out = tmp_path / name
+        run("eval", "--task", "goal", "--categories", "Door", "--episodes-per-category", "1", "--policies", "umpnet",
+            *model, "--out", str(out))  # fmt: skip
+        hashes[name] = json.loads((out / "run.json").read_text())["models"]["umpnet"]
+    assert hashes["default"] == hashes["wheel"] != hashes["other"], hashes
 
 
 BASELINES = ["umpnet-300", "single-step", "aot-only", "signed-dist", "where2act", "where2act-normal90", "inverse"]

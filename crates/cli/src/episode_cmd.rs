@@ -51,7 +51,7 @@ pub struct EpisodeArgs {
     pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
     pub sampler: crate::policies::SamplerArgs,
-    /// Model package for --policy umpnet (default: models/umpnet-small).
+    /// Model package for --policy umpnet (default: models/umpnet-gpu-medium).
     #[arg(long)]
     pub model: Option<PathBuf>,
     /// Image size as HEIGHTxWIDTH (rows x columns) of a scripted policy's

@@ -10,13 +10,17 @@ use umpnet_policy::cem::Sampler;
 use umpnet_policy::policy::{DirectionFilter, GraspRule};
 use umpnet_sim::scene::Task;
 
+/// The default model package's directory name, under `models/`: the shipped
+/// package with the best test-category figures (README's table).
+pub const SHIPPED_MODEL: &str = "umpnet-gpu-medium";
+
 /// Where the shipped model is looked for, in order: $UMPNET_MODEL (a package
-/// directory), `models/umpnet-small` under the working directory, under
+/// directory), `models/umpnet-gpu-medium` under the working directory, under
 /// $XDG_DATA_HOME/umpnet (or ~/.local/share/umpnet), and beside the binary
 /// or any directory above it (a build in the repository, or an install
 /// prefix's `share/umpnet`).
 pub fn default_model_candidates() -> Vec<PathBuf> {
-    let rel = Path::new("models").join("umpnet-small");
+    let rel = Path::new("models").join(SHIPPED_MODEL);
     let mut candidates: Vec<PathBuf> = Vec::new();
     if let Some(p) = std::env::var_os("UMPNET_MODEL") {
         candidates.push(PathBuf::from(p));

@@ -13,6 +13,7 @@ import umpnet
 import umpnet.gym
 from gymnasium.vector import AutoresetMode
 from umpnet.gym import UmpnetEnv, UmpnetVectorEnv
+from umpnet.policy import SHIPPED_MODEL
 
 RES = (48, 64)
 CATEGORIES = ["Door", "StorageFurniture", "Microwave", "Kettle"]
@@ -286,7 +287,7 @@ def test_the_shipped_policy_through_gym_makes_the_moves_umpnet_eval_made(task, d
     filters = ["--direction-filter", direction_filter] if direction_filter else []
     subprocess.run(
         [binary, "eval", "--task", task, "--categories", "Door,Microwave,Switch", "--episodes-per-category", "3",
-         "--policies", "umpnet", "--model", str(root / "models/umpnet-small"), "--out", str(out), *filters],
+         "--policies", "umpnet", "--model", str(SHIPPED_MODEL), "--out", str(out), *filters],
         check=True, capture_output=True,
     )  # fmt: skip
     episodes = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]

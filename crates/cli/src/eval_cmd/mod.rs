@@ -89,7 +89,7 @@ pub struct EvalArgs {
     pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
     pub sampler: crate::policies::SamplerArgs,
-    /// Model package for `umpnet` (default: models/umpnet-small).
+    /// Model package for `umpnet` (default: models/umpnet-gpu-medium).
     #[arg(long)]
     pub model: Option<PathBuf>,
     /// Benchmark seed: the scenes, and each policy's seed per scene, derive from it.

@@ -70,7 +70,7 @@ pub struct InferArgs {
     /// Pixel (row,col) the gripper holds; without it the position action is chosen.
     #[arg(long, value_delimiter = ',')]
     pub grasp: Vec<usize>,
-    /// Model package (default: $UMPNET_MODEL, then models/umpnet-small as `explore` finds it).
+    /// Model package (default: $UMPNET_MODEL, then models/umpnet-gpu-medium as `explore` finds it).
     #[arg(long)]
     pub model: Option<PathBuf>,
     /// Seed of the direction sampling (CEM).

@@ -11,7 +11,7 @@ import numpy as np
 from ._umpnet import Policy as _Policy
 from ._umpnet import onnxruntime_in_site_packages
 
-# The shipped model package: inside the wheel, or a link to models/umpnet-small
+# The shipped model package: inside the wheel, or a link to models/umpnet-gpu-medium
 # in a source checkout.
 SHIPPED_MODEL = Path(__file__).with_name("model")
 
@@ -75,7 +75,7 @@ class Policy(_Policy):
     def default(
         cls, seed: int = 0, threads: int = 1, direction_filter: str | None = None, grasp_rule: str | None = None
     ) -> Policy:
-        """The shipped model package (``umpnet-small``), as installed with the wheel."""
+        """The shipped model package (``umpnet-gpu-medium``), as installed with the wheel."""
         if not (SHIPPED_MODEL / "model.json").is_file():
             raise FileNotFoundError(
                 f"the shipped model is not at {SHIPPED_MODEL}: this install of umpnet was built without it"
