@@ -237,6 +237,41 @@ def test_angle_units_follow_the_file_unless_the_including_model_sets_them(tmp_pa
     assert p.returncode == 2 and "--angle" in p.stderr and "radian" in p.stderr
 
 
+def test_franka_kitchen_imports_its_three_appliances_and_names_what_it_leaves_out(tmp_path):
+    # The scene's layout: appliances as bodies of one file that also holds
+    # the robot and scenery; each becomes its own object, by body name.
+    scene = tmp_path / "gr" / "envs" / "assets" / "kitchen_franka" / "kitchen_assets" / "kitchen_env_model.xml"
+    scene.parent.mkdir(parents=True)
+    appliance = (
+        '<body name="{name}" pos="{x} 0 1"><geom type="box" size=".3 .2 .2"/>'
+        '<body name="{name}_door" pos="0 -.22 0"><joint name="{name}_joint" type="{kind}" axis="{axis}" range="{range}"/>'
+        '<geom type="box" size=".28 .02 .18"/></body></body>'
+    )
+    scene.write_text(
+        '<mujoco><compiler angle="radian"/><worldbody><geom type="plane" size="5 5 .1"/>'
+        '<body name="desk" pos="0 1 0">'
+        + appliance.format(name="microwave", x=-1, kind="hinge", axis="0 0 1", range="-2.094 0")
+        + appliance.format(name="slidecabinet", x=0, kind="slide", axis="1 0 0", range="0 .44")
+        + appliance.format(name="hingecabinet", x=1, kind="hinge", axis="0 0 1", range="0 1.57")
+        + appliance.format(name="ovenroot", x=2, kind="hinge", axis="0 1 0", range="-1.57 0")
+        + "</body></worldbody></mujoco>"
+    )
+    report = json.loads(
+        importer("franka-kitchen", "--from", tmp_path / "gr", "--out", tmp_path / "out", "--json").stdout
+    )
+    assert [i["name"] for i in report["imported"]] == ["microwave", "slidecabinet", "hingecabinet"]
+    limits = {i["name"]: [(j["type"], j["lower"], j["upper"]) for j in i["joints"]] for i in report["imported"]}
+    # The scene's <compiler angle="radian"/> holds: 2.094 is radians, not degrees.
+    assert limits["microwave"] == [("revolute", pytest.approx(-2.094), 0.0)]
+    assert limits["slidecabinet"] == [("prismatic", 0.0, pytest.approx(0.44))]
+    assert sorted((tmp_path / "out").iterdir()) == [
+        tmp_path / "out" / n for n in ("hingecabinet", "microwave", "slidecabinet")
+    ]
+    assert "ovenroot" in {s["file"] for s in report["skipped"]}
+    p = importer("franka-kitchen", "--from", tmp_path / "out", "--out", tmp_path / "none", check=False)
+    assert p.returncode == 1 and "kitchen_env_model.xml" in p.stderr and str(tmp_path / "out") in p.stderr
+
+
 def test_a_folder_imports_its_articulated_files_and_says_why_it_skipped_the_rest(tmp_path):
     src = tmp_path / "objects"
     src.mkdir()

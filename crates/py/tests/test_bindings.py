@@ -177,10 +177,16 @@ def test_policy_reads_a_joint_from_one_frame_as_the_runtime_votes_it(fixture_pac
     assert joint["type"] == "prismatic" and joint["axis"] == [1.0, 0.0, 0.0] and joint["point"] is None
     fields = ort.InferenceSession(str(package / "joint.onnx")).run(None, {"observation": image[None]})[0][0]
     assert umpnet._umpnet.joint_from_fields(image, fields, (h // 2, w // 2)) == joint
-    # The same outputs saying "static" everywhere: nothing to vote on.
+    # The same outputs saying "static" everywhere: the grasped surface near
+    # the grasp votes alone, the same way.
     still = fields.copy()
     still[0] = -5.0
-    assert umpnet._umpnet.joint_from_fields(image, still, (h // 2, w // 2)) is None
+    near = umpnet._umpnet.joint_from_fields(image, still, (h // 2, w // 2))
+    assert near["type"] == joint["type"] and 3 <= near["voting_pixels"] < joint["voting_pixels"]
+    # Nothing to vote on without depth at the grasp.
+    hole = image.copy()
+    hole[h // 2, w // 2, 9] = 0.0
+    assert umpnet._umpnet.joint_from_fields(hole, fields, (h // 2, w // 2)) is None
     assert umpnet.Policy(str(Path(fixture_package) / "steer")).frame_joint(image, (h // 2, w // 2)) is None
     with pytest.raises(ValueError, match="pixel"):
         pol.frame_joint(image, (h, 0))

@@ -2,6 +2,7 @@
 
     python -m umpnet.objects import-mjcf FILE.xml --out DIR [--name NAME]
     python -m umpnet.objects metaworld --out data/external
+    python -m umpnet.objects franka-kitchen --out data/kitchen
 
 MJCF (MuJoCo's format: Meta-World, MuJoCo Menagerie, robosuite, dm_control)
 is compiled by the official ``mujoco`` package, so defaults, classes,
@@ -705,6 +706,17 @@ def main(argv: list[str] | None = None) -> int:
         parents=[common],
         help="import every articulated object of the installed metaworld package",
     )
+    kitchen = sub.add_parser(
+        "franka-kitchen",
+        parents=[common],
+        help="import Franka Kitchen's microwave and sliding and hinged cabinets (gymnasium-robotics)",
+    )
+    kitchen.add_argument(
+        "--from",
+        dest="source",
+        type=Path,
+        help="a gymnasium_robotics package folder (e.g. from its unpacked wheel); default: the installed package",
+    )
     a = p.parse_args(argv)
     kw = {"size": a.size, "dynamics": a.dynamics, "force": a.force}
     try:
@@ -717,6 +729,15 @@ def main(argv: list[str] | None = None) -> int:
             imported, skipped = import_folder(a.folder, a.out, yaw_deg=a.yaw, angle=a.angle, **kw)
             if not imported:
                 raise ImportFailed(f"{a.folder}: no articulated object among its {len(skipped)} MJCF files")
+        elif a.command == "franka-kitchen":
+            from . import _kitchen
+
+            try:
+                scene = _kitchen.scene_file(a.source)
+            except FileNotFoundError as e:
+                raise ImportFailed(str(e)) from e
+            imported = [import_mjcf(scene, a.out, name, body=body, **kw) for body, name in _kitchen.APPLIANCES.items()]
+            skipped = list(_kitchen.LEFT_OUT.items())
         else:
             imported, skipped = import_folder(metaworld_objects_dir(), a.out, **kw)
             if not imported:
