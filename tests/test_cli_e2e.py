@@ -147,6 +147,19 @@ def test_the_sampler_ablations_draw_as_named_and_eval_records_them(tmp_path):
     assert json.loads((tmp_path / "u" / "results.json").read_text())["summary"]["sampler"] == "uniform 32"
     run(*ev, "--out", str(tmp_path / "plain"))
     assert "sampler" not in json.loads((tmp_path / "plain" / "results.json").read_text())["summary"]
+    assert "mirror_average" not in json.loads((tmp_path / "plain" / "results.json").read_text())["summary"]
+
+    # Mirror averaging: the same first round (the same random draws), scored
+    # otherwise; eval records it.
+    def first_round(*flags):
+        args = ("--json", "explore", "--category", "Door", "--policy", "umpnet", "--steps", "1")
+        c = json.loads(run(*args, *flags).stdout)["steps"][0]["candidates"]
+        return np.array(c["directions"])[:64], np.array(c["distance"])[:64]
+
+    (d, plain), (dm, mirrored) = first_round(), first_round("--mirror-average")
+    assert np.array_equal(d, dm) and np.abs(plain - mirrored).max() > 1e-3
+    run(*ev, "--mirror-average", "--out", str(tmp_path / "m"))
+    assert json.loads((tmp_path / "m" / "results.json").read_text())["summary"]["mirror_average"] is True
 
 
 def test_paper_rows_set_each_category_beside_the_papers_figure(tmp_path):
@@ -1198,10 +1211,11 @@ def test_the_onward45_filter_explores_onward_along_where_the_gripper_went(tmp_pa
             run("--json", "infer", *onward, "--grasp", "48,64", f"--motion={','.join(map(str, way))}").stdout
         )
         assert along(out, way) >= math.sqrt(0.5) - 1e-6 and out["predicted_aot"] == 1, (way, out)
-    # The heads' own choice where the gripper hardly went: not kept to it.
-    plain = json.loads(run("--json", "infer", *frame, "--grasp", "48,64").stdout)
+    # Where the gripper hardly went, not kept to it: joint45's rule on the
+    # joint the JointNet reads at the grasp.
+    joint45 = json.loads(run("--json", "infer", *frame, "--grasp", "48,64", "--direction-filter", "joint45").stdout)
     small = json.loads(run("--json", "infer", *onward, "--grasp", "48,64", "--motion=0,0.01,0").stdout)
-    assert small["direction"] == plain["direction"], (small, plain)
+    assert small["joint"] is not None and small["direction"] == joint45["direction"], (small, joint45)
     # A session reads the motion from where --gripper says the gripper went.
     s = str(tmp_path / "session")
     first = json.loads(run("--json", "infer", "--session", s, *onward).stdout)

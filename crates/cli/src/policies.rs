@@ -73,9 +73,32 @@ pub struct SamplerArgs {
     /// Candidate directions per CEM round (the paper: 64)
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=umpnet_policy::cem::MAX_CANDIDATES as i64))]
     pub cem_samples: Option<u32>,
+    /// Beyond the paper: a learned policy scores every candidate direction
+    /// also on the scene mirrored left-right (the camera's plane of
+    /// symmetry) and acts on the average of the two; twice the direction
+    /// networks' time
+    #[arg(long)]
+    pub mirror_average: bool,
+}
+
+/// How learned policies draw and score candidate directions.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Scoring {
+    /// The sampler asked for, or None for the package's default (CEM, 64).
+    pub sampler: Option<Sampler>,
+    /// `--mirror-average`.
+    pub mirror_average: bool,
 }
 
 impl SamplerArgs {
+    /// The sampler and the scoring asked for.
+    pub fn scoring(&self) -> Scoring {
+        Scoring {
+            sampler: self.sampler(),
+            mirror_average: self.mirror_average,
+        }
+    }
+
     /// The sampler asked for, or None for the package's default (CEM, 64).
     pub fn sampler(&self) -> Option<Sampler> {
         if self.sampler.is_none() && self.cem_samples.is_none() {
@@ -91,6 +114,25 @@ impl SamplerArgs {
     }
 }
 
+/// `policy` under the options that replace every learned package's own.
+fn configured(
+    mut policy: LearnedPolicy,
+    filter: Option<DirectionFilter>,
+    grasp: Option<GraspRule>,
+    scoring: Scoring,
+) -> umpnet_eval::Result<LearnedPolicy> {
+    if let Some(f) = filter {
+        policy = policy.with_direction_filter(f);
+    }
+    if let Some(s) = scoring.sampler {
+        policy = policy.with_sampler(s);
+    }
+    if let Some(g) = grasp {
+        policy = policy.with_grasp(g)?;
+    }
+    Ok(policy.with_mirror_average(scoring.mirror_average))
+}
+
 /// Packages are checked against `task`: an Inverse package has no exploration
 /// behaviour. `filter` and `grasp` replace every learned package's.
 pub fn resolve(
@@ -100,7 +142,7 @@ pub fn resolve(
     task: Task,
     filter: Option<DirectionFilter>,
     grasp: Option<GraspRule>,
-    sampler: Option<Sampler>,
+    scoring: Scoring,
 ) -> Result<Resolved> {
     if filter == Some(DirectionFilter::Prev90) && task == Task::Goal {
         return Err(usage(
@@ -180,16 +222,8 @@ pub fn resolve(
                 packages.push((name.clone(), dir.clone()));
                 let n = name.clone();
                 let f: PolicyFactory = Arc::new(move || {
-                    let mut p = LearnedPolicy::new(&n, pkg.clone());
-                    if let Some(f) = filter {
-                        p = p.with_direction_filter(f);
-                    }
-                    if let Some(s) = sampler {
-                        p = p.with_sampler(s);
-                    }
-                    if let Some(g) = grasp {
-                        p = p.with_grasp(g)?;
-                    }
+                    let p =
+                        configured(LearnedPolicy::new(&n, pkg.clone()), filter, grasp, scoring)?;
                     Ok(Box::new(p) as Box<dyn umpnet_eval::Policy>)
                 });
                 factories.push((name, f));

@@ -383,7 +383,7 @@ mod tests {
             Task::Goal,
             None,
             None,
-            None,
+            crate::policies::Scoring::default(),
         )
         .expect("the shipped model (and ONNX Runtime) must load");
         let (_, make) = &resolved.factories[0];

@@ -94,6 +94,12 @@ impl LearnedPolicy {
         self.policy = self.policy.with_sampler(sampler);
         self
     }
+    /// Averages every candidate's scores with the mirrored scene's
+    /// ([`UmpnetPolicy::with_mirror_average`]).
+    pub fn with_mirror_average(mut self, on: bool) -> Self {
+        self.policy = self.policy.with_mirror_average(on);
+        self
+    }
 
     /// Loads a package with `sessions` concurrent session sets (one per worker thread).
     pub fn load(dir: &Path, sessions: usize) -> Result<Arc<ModelPackage>> {

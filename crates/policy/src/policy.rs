@@ -82,6 +82,9 @@ pub struct UmpnetPolicy {
     pub grasp: GraspRule,
     /// How candidates are drawn: the paper's CEM unless overridden (ablations).
     pub sampler: Sampler,
+    /// Score each candidate also on the scene mirrored left-right (x -> -x,
+    /// the benchmark camera's plane of symmetry) and average the two.
+    pub mirror_average: bool,
 }
 
 impl UmpnetPolicy {
@@ -95,7 +98,14 @@ impl UmpnetPolicy {
             direction_filter,
             grasp,
             sampler: Sampler::default(),
+            mirror_average: false,
         }
+    }
+
+    /// Averages each candidate's scores with those of the mirrored scene.
+    pub fn with_mirror_average(mut self, on: bool) -> Self {
+        self.mirror_average = on;
+        self
     }
 
     /// Draws candidates with `sampler` instead of the paper's CEM with 64 per
@@ -340,6 +350,21 @@ impl UmpnetPolicy {
         if self.package.branches == Branches::Inverse {
             return self.inverse(&de, &ae);
         }
+        let mirrored = if self.mirror_average {
+            let (mo, mr, mp) = (mirror(&obs), mirror(&refs), {
+                let mut p = pix.clone();
+                p.column_mut(1).mapv_inplace(|c| w as i64 - 1 - c);
+                p
+            });
+            Some(self.package.encode(mo.view(), mr.view(), mp.view())?)
+        } else {
+            None
+        };
+        let emb = Embeddings {
+            de: &de,
+            ae: &ae,
+            mirrored: mirrored.as_ref().map(|(d, a)| (d, a)),
+        };
         let (n, uniform) = match self.sampler {
             Sampler::Cem { n } => (n, false),
             Sampler::Uniform { n } => (2 * n, true),
@@ -353,7 +378,7 @@ impl UmpnetPolicy {
         if uniform {
             Keep::add_exact_ways(&rules, &mut first);
         }
-        let mut s1 = self.score(&de, &ae, &first)?;
+        let mut s1 = self.score(&emb, &first)?;
         filters::apply(&rules, &first, &mut s1);
         if uniform {
             return Ok((0..b)
@@ -371,7 +396,7 @@ impl UmpnetPolicy {
             .map(|(i, (inp, rng))| second_round(rng, &first[i], &s1[i], inp.mode, inp.banned, n))
             .collect();
         Keep::add_exact_ways(&rules, &mut second);
-        let mut s2 = self.score(&de, &ae, &second)?;
+        let mut s2 = self.score(&emb, &second)?;
         filters::apply(&rules, &second, &mut s2);
         Ok((0..b)
             .map(|i| {
@@ -409,28 +434,15 @@ impl UmpnetPolicy {
             .collect())
     }
 
-    /// Scores each environment's candidates in one decoder call.
-    fn score(
-        &self,
-        de: &Array2<f32>,
-        ae: &Array2<f32>,
-        cands: &[Vec<Vector3<f32>>],
-    ) -> Result<Vec<Vec<Score>>> {
-        let n: usize = cands.iter().map(Vec::len).sum();
-        let e = de.shape()[1];
-        let mut d = Array2::<f32>::zeros((n, e));
-        let mut a = Array2::<f32>::zeros((n, e));
-        let mut dirs = Array2::<f32>::zeros((n, 3));
-        let mut row = 0;
-        for (i, c) in cands.iter().enumerate() {
-            for v in c {
-                d.row_mut(row).assign(&de.row(i));
-                a.row_mut(row).assign(&ae.row(i));
-                dirs.row_mut(row).assign(&ndarray::arr1(&[v.x, v.y, v.z]));
-                row += 1;
-            }
+    /// Scores each environment's candidates in one decoder call (two with
+    /// the mirrored scene, averaged).
+    fn score(&self, emb: &Embeddings<'_>, cands: &[Vec<Vector3<f32>>]) -> Result<Vec<Vec<Score>>> {
+        let mut s = self.decode(emb.de, emb.ae, cands, 1.0)?;
+        if let Some((dm, am)) = emb.mirrored {
+            let m = self.decode(dm, am, cands, -1.0)?;
+            s.distance = (&s.distance + &m.distance) * 0.5;
+            s.aot_probs = (&s.aot_probs + &m.aot_probs) * 0.5;
         }
-        let s = self.package.decode(d.view(), a.view(), dirs.view())?;
         let mut out = Vec::with_capacity(cands.len());
         let mut row = 0;
         for c in cands {
@@ -446,7 +458,53 @@ impl UmpnetPolicy {
         }
         Ok(out)
     }
+
+    /// The decoder's scores of every candidate, its x scaled by `x_sign`.
+    fn decode(
+        &self,
+        de: &Array2<f32>,
+        ae: &Array2<f32>,
+        cands: &[Vec<Vector3<f32>>],
+        x_sign: f32,
+    ) -> Result<crate::package::DirectionScores> {
+        let n: usize = cands.iter().map(Vec::len).sum();
+        let e = de.shape()[1];
+        let mut d = Array2::<f32>::zeros((n, e));
+        let mut a = Array2::<f32>::zeros((n, e));
+        let mut dirs = Array2::<f32>::zeros((n, 3));
+        let mut row = 0;
+        for (i, c) in cands.iter().enumerate() {
+            for v in c {
+                d.row_mut(row).assign(&de.row(i));
+                a.row_mut(row).assign(&ae.row(i));
+                dirs.row_mut(row)
+                    .assign(&ndarray::arr1(&[x_sign * v.x, v.y, v.z]));
+                row += 1;
+            }
+        }
+        self.package.decode(d.view(), a.view(), dirs.view())
+    }
 }
+
+/// The encoders' embeddings of a batch, and of its mirror image.
+struct Embeddings<'a> {
+    de: &'a Array2<f32>,
+    ae: &'a Array2<f32>,
+    mirrored: Option<(&'a Array2<f32>, &'a Array2<f32>)>,
+}
+
+/// A batch of observations (B x H x W x 10) mirrored left-right: columns
+/// reversed, and the world's x (position and normal) negated. The benchmark
+/// camera sits in the plane x = 0, so this is the same scene mirrored.
+fn mirror(obs: &Array4<f32>) -> Array4<f32> {
+    let mut m = obs.slice(ndarray::s![.., .., ..;-1, ..]).to_owned();
+    for ch in [0, 6] {
+        m.index_axis_mut(Axis(3), ch).mapv_inplace(|v| -v);
+    }
+    m
+}
+
+impl UmpnetPolicy {}
 
 /// The most probable class of a row of AoT probabilities in the canonical
 /// order (-1, 0, +1), as the AoT value.
@@ -468,7 +526,21 @@ pub(crate) fn on_image(pixel: (usize, usize), (h, w): (usize, usize)) -> (usize,
 
 #[cfg(test)]
 mod tests {
-    use super::{most_likely_aot, on_image};
+    use super::{mirror, most_likely_aot, on_image};
+
+    #[test]
+    fn the_mirror_image_reverses_columns_and_negates_the_worlds_x() {
+        let obs = ndarray::Array4::from_shape_fn((2, 3, 4, 10), |(b, r, c, ch)| {
+            (b * 1000 + r * 100 + c * 10 + ch) as f32
+        });
+        let m = mirror(&obs);
+        for ((b, r, c, ch), &v) in m.indexed_iter() {
+            let was = obs[[b, r, 3 - c, ch]];
+            let want = if ch == 0 || ch == 6 { -was } else { was };
+            assert_eq!(v, want, "{b} {r} {c} {ch}");
+        }
+        assert_eq!(mirror(&m), obs);
+    }
 
     #[test]
     fn a_grasp_pixel_past_the_image_is_read_at_the_nearest_edge_pixel() {

@@ -239,6 +239,25 @@ fn exploration_moves_forward_and_the_goal_mode_back() {
 }
 
 #[test]
+fn mirror_averaging_scores_each_direction_with_its_mirror_image() {
+    let Some(policy) = policy("steer") else {
+        return;
+    };
+    let policy = policy.with_mirror_average(true);
+    let obs = observation(&policy, 4);
+    let r = decide(&policy, &[obs], &[Mode::Explore], &[], 7).remove(0);
+    assert_eq!(r.candidates.len(), 128);
+    // The decoder gives d 0.3 - 0.2 x, and its mirror image (x -> -x)
+    // 0.3 + 0.2 x: the mean is 0.3 whichever way d points.
+    for (d, s) in r.candidates.iter().zip(&r.scores) {
+        assert!((s.distance - 0.3).abs() < 1e-4, "{d:?}: {s:?}");
+        if d.x.abs() < 0.09 {
+            assert_eq!(s.aot, 0, "{d:?}");
+        }
+    }
+}
+
+#[test]
 fn a_batch_decides_as_its_members_would_alone() {
     let Some(policy) = policy("steer") else {
         return;

@@ -204,7 +204,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         a.task,
         a.direction_filter,
         a.grasp_rule,
-        a.sampler.sampler(),
+        a.sampler.scoring(),
     )?;
     let mut models = BTreeMap::new();
     for (name, dir) in &resolved.packages {
@@ -268,6 +268,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
             .sampler
             .sampler()
             .map(|s| format!("{} {}", s.name(), s.samples())),
+        mirror_average: a.sampler.mirror_average,
     };
     if let Some(dir) = &a.out
         && !a.force

@@ -54,6 +54,10 @@ pub struct RunInfo {
     /// candidates (`cem 32`, `uniform 64`), when not the paper's CEM with 64.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<String>,
+    /// `--mirror-average`: every learned policy averaged its scores with
+    /// the mirrored scene's.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub mirror_average: bool,
 }
 
 /// The PartNet-Mobility folder a run's categories were scored on: the

@@ -208,6 +208,7 @@ pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
     if let Some(s) = a.sampler.sampler() {
         policy = policy.with_sampler(s);
     }
+    policy = policy.with_mirror_average(a.sampler.mirror_average);
     let previous = vector_arg("--previous", &a.previous, true)?.map(|v| v.normalize());
     let motion = vector_arg("--motion", &a.motion, false)?;
     let (mh, mw) = policy.resolution();
