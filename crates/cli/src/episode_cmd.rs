@@ -50,7 +50,7 @@ pub struct EpisodeArgs {
     #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
     pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
-    pub sampler: crate::policies::SamplerArgs,
+    pub scoring: crate::policies::ScoringArgs,
     /// Model package for --policy umpnet (default: models/umpnet-gpu-medium).
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -85,7 +85,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         task,
         a.direction_filter,
         a.grasp_rule,
-        a.sampler.scoring(),
+        a.scoring.scoring(),
     )?;
     let mut policy: Box<dyn Policy> = match resolved.factories.first() {
         Some((_, make)) => make()?,

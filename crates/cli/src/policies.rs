@@ -62,9 +62,10 @@ pub struct Resolved {
     pub packages: Vec<(String, PathBuf)>,
 }
 
-/// The sampler ablations of the paper's appendix, for learned policies.
+/// How learned policies draw candidate directions (the sampler ablations of
+/// the paper's appendix) and score them (`--mirror-average`).
 #[derive(clap::Args, Clone, Debug, Default)]
-pub struct SamplerArgs {
+pub struct ScoringArgs {
     /// How a learned policy draws candidate directions: cem (the paper: two
     /// rounds, the second resampled around the best of the first) or uniform
     /// (one round of twice --cem-samples, the same number of evaluations)
@@ -90,7 +91,7 @@ pub struct Scoring {
     pub mirror_average: bool,
 }
 
-impl SamplerArgs {
+impl ScoringArgs {
     /// The sampler and the scoring asked for.
     pub fn scoring(&self) -> Scoring {
         Scoring {

@@ -92,46 +92,68 @@ pub fn part_pixels(
     grasp: (usize, usize),
     radius: Option<f32>,
 ) -> Vec<(usize, usize)> {
-    let (h, w, channels) = observation.dim();
-    let valid = |(r, c): (usize, usize)| observation[[r, c, 9]] > 0.0;
-    if channels != CHANNELS
-        || fields.dim() != (JOINT_CHANNELS, h, w)
-        || grasp.0 >= h
-        || grasp.1 >= w
-        || !valid(grasp)
-    {
-        return Vec::new();
+    Surface::new(observation, fields)
+        .map(|surface| surface.part(grasp, radius))
+        .unwrap_or_default()
+}
+
+/// An observation and its JointNet fields of matching shapes, with the
+/// distance below which neighbouring pixels' points lie on one surface
+/// (measured once: it passes over the whole image).
+struct Surface<'a, 'o> {
+    observation: &'a ArrayView3<'o, f32>,
+    fields: &'a ArrayView3<'o, f32>,
+    step: f32,
+}
+
+impl<'a, 'o> Surface<'a, 'o> {
+    fn new(observation: &'a ArrayView3<'o, f32>, fields: &'a ArrayView3<'o, f32>) -> Option<Self> {
+        let (h, w, channels) = observation.dim();
+        (channels == CHANNELS && fields.dim() == (JOINT_CHANNELS, h, w)).then(|| Surface {
+            observation,
+            fields,
+            step: SURFACE_STEP.max(STEP_OVER_SPACING * median_spacing(observation)),
+        })
     }
-    let step = SURFACE_STEP.max(STEP_OVER_SPACING * median_spacing(observation));
-    let grasp_point = point(observation, grasp);
-    let on_part = |(r, c): (usize, usize), at: Vector3<f32>| match radius {
-        None => fields[[0, r, c]] > 0.0,
-        Some(radius) => (at - grasp_point).norm() <= radius,
-    };
-    let mut seen = vec![false; h * w];
-    seen[grasp.0 * w + grasp.1] = true;
-    let (mut queue, mut part) = (VecDeque::from([grasp]), Vec::new());
-    while let Some((r, c)) = queue.pop_front() {
-        part.push((r, c));
-        let here = point(observation, (r, c));
-        let neighbours = [
-            (r + 1, c),
-            (r.wrapping_sub(1), c),
-            (r, c + 1),
-            (r, c.wrapping_sub(1)),
-        ];
-        for n in neighbours {
-            if n.0 >= h || n.1 >= w || seen[n.0 * w + n.1] {
-                continue;
-            }
-            let at = point(observation, n);
-            if valid(n) && on_part(n, at) && (at - here).norm() < step {
-                seen[n.0 * w + n.1] = true;
-                queue.push_back(n);
+
+    /// [`part_pixels`] on this surface.
+    fn part(&self, grasp: (usize, usize), radius: Option<f32>) -> Vec<(usize, usize)> {
+        let (observation, fields) = (self.observation, self.fields);
+        let (h, w, _) = observation.dim();
+        let valid = |(r, c): (usize, usize)| observation[[r, c, 9]] > 0.0;
+        if grasp.0 >= h || grasp.1 >= w || !valid(grasp) {
+            return Vec::new();
+        }
+        let grasp_point = point(observation, grasp);
+        let on_part = |(r, c): (usize, usize), at: Vector3<f32>| match radius {
+            None => fields[[0, r, c]] > 0.0,
+            Some(radius) => (at - grasp_point).norm() <= radius,
+        };
+        let mut seen = vec![false; h * w];
+        seen[grasp.0 * w + grasp.1] = true;
+        let (mut queue, mut part) = (VecDeque::from([grasp]), Vec::new());
+        while let Some((r, c)) = queue.pop_front() {
+            part.push((r, c));
+            let here = point(observation, (r, c));
+            let neighbours = [
+                (r + 1, c),
+                (r.wrapping_sub(1), c),
+                (r, c + 1),
+                (r, c.wrapping_sub(1)),
+            ];
+            for n in neighbours {
+                if n.0 >= h || n.1 >= w || seen[n.0 * w + n.1] || !valid(n) {
+                    continue;
+                }
+                let at = point(observation, n);
+                if on_part(n, at) && (at - here).norm() < self.step {
+                    seen[n.0 * w + n.1] = true;
+                    queue.push_back(n);
+                }
             }
         }
+        part
     }
-    part
 }
 
 /// The median distance between the points of horizontally neighbouring
@@ -189,9 +211,10 @@ pub fn joint_from_fields(
     fields: ArrayView3<'_, f32>,
     grasp: (usize, usize),
 ) -> Option<FrameJoint> {
-    let mut part = part_pixels(&observation, &fields, grasp, None);
+    let surface = Surface::new(&observation, &fields)?;
+    let mut part = surface.part(grasp, None);
     if part.len() < MIN_PART_PIXELS {
-        part = part_pixels(&observation, &fields, grasp, Some(GRASP_PART_RADIUS));
+        part = surface.part(grasp, Some(GRASP_PART_RADIUS));
     }
     let at = point(&observation, *part.first()?);
     let voters: Vec<(usize, usize)> = part

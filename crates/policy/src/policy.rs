@@ -504,8 +504,6 @@ fn mirror(obs: &Array4<f32>) -> Array4<f32> {
     m
 }
 
-impl UmpnetPolicy {}
-
 /// The most probable class of a row of AoT probabilities in the canonical
 /// order (-1, 0, +1), as the AoT value.
 fn most_likely_aot(p: ndarray::ArrayView1<'_, f32>) -> i8 {

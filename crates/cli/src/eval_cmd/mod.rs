@@ -88,7 +88,7 @@ pub struct EvalArgs {
     #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
     pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
-    pub sampler: crate::policies::SamplerArgs,
+    pub scoring: crate::policies::ScoringArgs,
     /// Model package for `umpnet` (default: models/umpnet-gpu-medium).
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -204,7 +204,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         a.task,
         a.direction_filter,
         a.grasp_rule,
-        a.sampler.scoring(),
+        a.scoring.scoring(),
     )?;
     let mut models = BTreeMap::new();
     for (name, dir) in &resolved.packages {
@@ -265,10 +265,10 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         direction_filter: a.direction_filter.map(|f| f.name().to_owned()),
         grasp_rule: a.grasp_rule.map(|g| g.name().to_owned()),
         sampler: a
-            .sampler
+            .scoring
             .sampler()
             .map(|s| format!("{} {}", s.name(), s.samples())),
-        mirror_average: a.sampler.mirror_average,
+        mirror_average: a.scoring.mirror_average,
     };
     if let Some(dir) = &a.out
         && !a.force

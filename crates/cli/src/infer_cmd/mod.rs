@@ -66,7 +66,7 @@ pub struct InferArgs {
     #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
     pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
-    pub sampler: crate::policies::SamplerArgs,
+    pub scoring: crate::policies::ScoringArgs,
     /// Pixel (row,col) the gripper holds; without it the position action is chosen.
     #[arg(long, value_delimiter = ',')]
     pub grasp: Vec<usize>,
@@ -205,10 +205,10 @@ pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
     if let Some(g) = a.grasp_rule {
         policy = policy.with_grasp(g)?;
     }
-    if let Some(s) = a.sampler.sampler() {
+    if let Some(s) = a.scoring.sampler() {
         policy = policy.with_sampler(s);
     }
-    policy = policy.with_mirror_average(a.sampler.mirror_average);
+    policy = policy.with_mirror_average(a.scoring.mirror_average);
     let previous = vector_arg("--previous", &a.previous, true)?.map(|v| v.normalize());
     let motion = vector_arg("--motion", &a.motion, false)?;
     let (mh, mw) = policy.resolution();
