@@ -65,6 +65,31 @@ def test_fine_tuning_raises_held_out_accuracy_and_leaves_the_position_net(steeri
     assert (tmp_path / "pkg" / "model.json").is_file()
 
 
+def test_a_mirrored_state_is_the_same_scene_seen_in_a_mirror(data):
+    which = np.arange(0, len(data["mode"]), 2)
+    m = candidates.mirrored(data, which)
+    w = data["image"].shape[2]
+    for i in range(len(data["mode"])):
+        if i % 2:  # states not chosen are untouched
+            assert all(np.array_equal(m[k][i], data[k][i], equal_nan=True) for k in data), i
+            continue
+        (r, c), (rm, cm) = data["pixel"][i], m["pixel"][i]
+        assert rm == r and cm == w - 1 - c
+        for key in ("image", "reference"):
+            was, now = data[key][i, r, c].astype(np.float32), m[key][i, rm, cm].astype(np.float32)
+            assert np.allclose(now[[0, 6]], -was[[0, 6]]) and np.allclose(
+                np.delete(now, [0, 6]), np.delete(was, [0, 6])
+            )
+        # Each candidate keeps its angle to the grasped surface's normal.
+        real = data["aot"][i] != 2
+        normal, normal_m = data["image"][i, r, c, 6:9].astype(np.float32), m["image"][i, rm, cm, 6:9].astype(np.float32)
+        assert np.allclose(data["candidates"][i, real] @ normal, m["candidates"][i, real] @ normal_m, atol=1e-3)
+    for key in ("aot", "dist", "mode"):
+        assert np.array_equal(m[key], data[key])
+    again = candidates.mirrored(m, which)
+    assert all(np.array_equal(again[k], data[k], equal_nan=True) for k in data)
+
+
 def test_a_last_partial_batch_records_only_the_episodes_asked_for(steering, data):
     # Two episodes of four environments: the third and fourth run (so the
     # others see the same scenes and decisions) but none of their states is kept.
@@ -126,6 +151,11 @@ def test_bad_input_is_refused_by_name(tmp_path, capsys):
             ["finetune", str(tmp_path / "c.pt"), str(tmp_path / "d.npz"), str(tmp_path / "r"), "--still-weight", "0"]
         )
     assert "--still-weight" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        candidates.main(
+            ["finetune", str(tmp_path / "c.pt"), str(tmp_path / "d.npz"), str(tmp_path / "r"), "--mirror", "2"]
+        )
+    assert "--mirror within [0, 1]" in capsys.readouterr().err
 
 
 def test_categories_narrow_the_collection_and_refuse_test_categories(steering, data, tmp_path, capsys):

@@ -71,6 +71,11 @@ class Settings:
     # frequencies; below 1 leans the head toward calling a move, which the
     # paper's goal policy needs to keep going on unfamiliar objects.
     still_weight: float = 1.0
+    # The share of training states shown mirrored left-right (beyond the
+    # paper): the benchmark camera sits in the world's plane x = 0, so the
+    # mirrored scene, with each candidate's x negated, is an equally valid
+    # state with the same labels (a left-hinged door becomes a right-hinged one).
+    mirror: float = 0.0
     seed: int = 0
     threads: int = 2
 
@@ -199,6 +204,31 @@ def candidate_losses(model: UMPNet, batch: dict, dist_loss_weight: float, still_
     }
 
 
+# Channels of an observation that change sign under the mirror x -> -x: the
+# point's x and the normal's x (xyz, rgb, normal, depth; crates/policy's
+# `mirror` flips the same two).
+MIRRORED_CHANNELS = (0, 6)
+
+
+def mirrored(batch: dict, which: np.ndarray) -> dict:
+    """`batch` with the states where `which` is set mirrored left-right:
+    columns reversed, x negated in points, normals and candidate directions.
+    Labels are unchanged, since physics is symmetric under the mirror."""
+    out = dict(batch)
+    for key in ("image", "reference"):
+        images = batch[key].copy()
+        images[which] = images[which][:, :, ::-1]
+        images[np.ix_(which, np.arange(images.shape[1]), np.arange(images.shape[2]), MIRRORED_CHANNELS)] *= -1
+        out[key] = images
+    pixel = batch["pixel"].copy()
+    pixel[which, 1] = batch["image"].shape[2] - 1 - pixel[which, 1]
+    out["pixel"] = pixel
+    candidates = batch["candidates"].copy()
+    candidates[which, :, 0] *= -1
+    out["candidates"] = candidates
+    return out
+
+
 def finetune(checkpoint: Path, data: dict, out: Path, s: Settings, log=print) -> Path:
     """Fine-tunes the direction nets of `checkpoint` on `data` (from
     `collect`); writes `out/checkpoint.pt` with a provenance segment and
@@ -238,7 +268,10 @@ def finetune(checkpoint: Path, data: dict, out: Path, s: Settings, log=print) ->
     t0 = time.perf_counter()
     model.train()
     for step in range(1, s.steps + 1):
-        losses = candidate_losses(model, batch(rng.choice(train, s.batch_states)), s.dist_loss_weight, s.still_weight)
+        b = batch(rng.choice(train, s.batch_states))
+        if s.mirror > 0:
+            b = mirrored(b, np.flatnonzero(rng.random(s.batch_states) < s.mirror))
+        losses = candidate_losses(model, b, s.dist_loss_weight, s.still_weight)
         opt.zero_grad()
         losses["loss/total"].backward()
         opt.step()
@@ -364,8 +397,10 @@ def main(argv=None) -> int:
         )
         print(f"wrote {a.out}")
         return 0
-    if not a.still_weight > 0 or a.steps < 1 or a.batch_states < 1 or not a.lr > 0:
-        p.error("--still-weight and --lr must be positive, --steps and --batch-states at least 1")
+    if not a.still_weight > 0 or a.steps < 1 or a.batch_states < 1 or not a.lr > 0 or not 0 <= a.mirror <= 1:
+        p.error(
+            "--still-weight and --lr must be positive, --steps and --batch-states at least 1, --mirror within [0, 1]"
+        )
     for path in [a.checkpoint, *a.data]:
         if not path.is_file():
             p.error(f"{path}: no such file")
