@@ -209,18 +209,16 @@ def candidate_losses(model: UMPNet, batch: dict, dist_loss_weight: float, still_
 # Channels of an observation that change sign under the mirror x -> -x: the
 # point's x and the normal's x (xyz, rgb, normal, depth; crates/policy's
 # `mirror` flips the same two).
-MIRRORED_CHANNELS = (0, 6)
-
-
 def mirrored(batch: dict, which: np.ndarray) -> dict:
-    """`batch` with the states where `which` is set mirrored left-right:
-    columns reversed, x negated in points, normals and candidate directions.
+    """`batch` with the states at indices `which` mirrored left-right: the
+    images by the runtime's own mirror (the one `--mirror-average` uses), the
+    grasp pixel's column reflected and each candidate direction's x negated.
     Labels are unchanged, since physics is symmetric under the mirror."""
     out = dict(batch)
     for key in ("image", "reference"):
         images = batch[key].copy()
-        images[which] = images[which][:, :, ::-1]
-        images[np.ix_(which, np.arange(images.shape[1]), np.arange(images.shape[2]), MIRRORED_CHANNELS)] *= -1
+        flipped = umpnet._umpnet.mirrored_observations(np.ascontiguousarray(images[which], dtype=np.float32))
+        images[which] = flipped.astype(images.dtype)
         out[key] = images
     pixel = batch["pixel"].copy()
     pixel[which, 1] = batch["image"].shape[2] - 1 - pixel[which, 1]
@@ -292,7 +290,8 @@ def finetune(checkpoint: Path, data: dict, out: Path, s: Settings, log=print) ->
             "from_epoch": ck.get("epoch"),
             "what": "candidate relabelling (umpnet_train.candidates): the direction nets fine-tuned on the CEM "
             "candidates of the package's own policy, labelled by simulation, the still class weighted by "
-            "settings.still_weight (1: natural class frequencies)",
+            "settings.still_weight (1: natural class frequencies), a share settings.mirror of the "
+            "sampled states shown mirrored left-right (0: none)",
             "states": len(data["mode"]),
             "labels": int((data["aot"] != 2).sum()),
             "settings": s.__dict__,

@@ -85,7 +85,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         task,
         a.direction_filter,
         a.grasp_rule,
-        a.scoring.scoring(),
+        a.scoring.resolve(),
     )?;
     let mut policy: Box<dyn Policy> = match resolved.factories.first() {
         Some((_, make)) => make()?,

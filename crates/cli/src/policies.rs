@@ -93,7 +93,7 @@ pub struct Scoring {
 
 impl ScoringArgs {
     /// The sampler and the scoring asked for.
-    pub fn scoring(&self) -> Scoring {
+    pub fn resolve(&self) -> Scoring {
         Scoring {
             sampler: self.sampler(),
             mirror_average: self.mirror_average,

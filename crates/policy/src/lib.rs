@@ -13,7 +13,10 @@ pub mod memory;
 pub mod observation;
 
 pub use error::{PolicyError, Result};
-pub use observation::{CHANNELS, CameraFrame, build_observation, build_observation_into};
+pub use observation::{
+    CHANNELS, CameraFrame, MIRRORED_CHANNELS, build_observation, build_observation_into,
+    mirrored_observations,
+};
 pub mod package;
 pub mod policy;
 pub mod runtime;

@@ -7,7 +7,7 @@
 )]
 use crate::error::{PolicyError, Result};
 use nalgebra::Vector3;
-use ndarray::Array3;
+use ndarray::{Array3, Array4, ArrayView4, Axis};
 use rayon::prelude::*;
 
 /// Channels of an observation: xyz, rgb, normal, depth.
@@ -117,6 +117,29 @@ pub(crate) fn point_at(
         observation[[r, c, 1]],
         observation[[r, c, 2]],
     )
+}
+
+/// The channels that hold a world x (the point's and the normal's): the ones
+/// a left-right mirror negates.
+pub const MIRRORED_CHANNELS: [usize; 2] = [0, 6];
+
+/// A batch of observations (B x H x W x 10) mirrored left-right: columns
+/// reversed, and the world's x (position and normal) negated. The benchmark
+/// camera sits in the plane x = 0, so this is the same scene mirrored. The
+/// runtime's `--mirror-average` and the fine-tune's `--mirror` both use it.
+pub fn mirrored_observations(obs: ArrayView4<'_, f32>) -> Array4<f32> {
+    // In standard (row-major) layout: `to_owned` of the reversed view would
+    // keep its memory order, and callers read the raw buffer.
+    let mut m = obs
+        .slice(ndarray::s![.., .., ..;-1, ..])
+        .as_standard_layout()
+        .into_owned();
+    for ch in MIRRORED_CHANNELS {
+        if ch < m.dim().3 {
+            m.index_axis_mut(Axis(3), ch).mapv_inplace(|v| -v);
+        }
+    }
+    m
 }
 
 /// Builds the H x W x 10 observation. Normals come from the depth image: the
@@ -234,6 +257,21 @@ fn observation_band(frame: &CameraFrame<'_>, r0: usize, band: &mut [f32]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_mirror_image_reverses_columns_and_negates_the_worlds_x() {
+        let obs = ndarray::Array4::from_shape_fn((2, 3, 4, 10), |(b, r, c, ch)| {
+            (b * 1000 + r * 100 + c * 10 + ch) as f32
+        });
+        let m = mirrored_observations(obs.view());
+        for ((b, r, c, ch), &v) in m.indexed_iter() {
+            let was = obs[[b, r, 3 - c, ch]];
+            let want = if ch == 0 || ch == 6 { -was } else { was };
+            assert_eq!(v, want, "{b} {r} {c} {ch}");
+        }
+        assert!(m.is_standard_layout());
+        assert_eq!(mirrored_observations(m.view()), obs);
+    }
 
     #[test]
     fn plane_facing_camera_gives_its_normal() {

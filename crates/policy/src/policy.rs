@@ -7,7 +7,7 @@
 use crate::cem::{CemResult, Mode, Sampler, Score, first_round, second_round, select};
 use crate::error::{PolicyError, Result};
 use crate::filters::{self, Keep};
-use crate::observation::CHANNELS;
+use crate::observation::{CHANNELS, mirrored_observations};
 use crate::package::{Branches, ModelPackage};
 use nalgebra::Vector3;
 use ndarray::{Array2, Array4, ArrayView3, Axis};
@@ -351,11 +351,15 @@ impl UmpnetPolicy {
             return self.inverse(&de, &ae);
         }
         let mirrored = if self.mirror_average {
-            let (mo, mr, mp) = (mirror(&obs), mirror(&refs), {
-                let mut p = pix.clone();
-                p.column_mut(1).mapv_inplace(|c| w as i64 - 1 - c);
-                p
-            });
+            let (mo, mr, mp) = (
+                mirrored_observations(obs.view()),
+                mirrored_observations(refs.view()),
+                {
+                    let mut p = pix.clone();
+                    p.column_mut(1).mapv_inplace(|c| w as i64 - 1 - c);
+                    p
+                },
+            );
             Some(self.package.encode(mo.view(), mr.view(), mp.view())?)
         } else {
             None
@@ -493,17 +497,6 @@ struct Embeddings<'a> {
     mirrored: Option<(&'a Array2<f32>, &'a Array2<f32>)>,
 }
 
-/// A batch of observations (B x H x W x 10) mirrored left-right: columns
-/// reversed, and the world's x (position and normal) negated. The benchmark
-/// camera sits in the plane x = 0, so this is the same scene mirrored.
-fn mirror(obs: &Array4<f32>) -> Array4<f32> {
-    let mut m = obs.slice(ndarray::s![.., .., ..;-1, ..]).to_owned();
-    for ch in [0, 6] {
-        m.index_axis_mut(Axis(3), ch).mapv_inplace(|v| -v);
-    }
-    m
-}
-
 /// The most probable class of a row of AoT probabilities in the canonical
 /// order (-1, 0, +1), as the AoT value.
 fn most_likely_aot(p: ndarray::ArrayView1<'_, f32>) -> i8 {
@@ -524,21 +517,7 @@ pub(crate) fn on_image(pixel: (usize, usize), (h, w): (usize, usize)) -> (usize,
 
 #[cfg(test)]
 mod tests {
-    use super::{mirror, most_likely_aot, on_image};
-
-    #[test]
-    fn the_mirror_image_reverses_columns_and_negates_the_worlds_x() {
-        let obs = ndarray::Array4::from_shape_fn((2, 3, 4, 10), |(b, r, c, ch)| {
-            (b * 1000 + r * 100 + c * 10 + ch) as f32
-        });
-        let m = mirror(&obs);
-        for ((b, r, c, ch), &v) in m.indexed_iter() {
-            let was = obs[[b, r, 3 - c, ch]];
-            let want = if ch == 0 || ch == 6 { -was } else { was };
-            assert_eq!(v, want, "{b} {r} {c} {ch}");
-        }
-        assert_eq!(mirror(&m), obs);
-    }
+    use super::{most_likely_aot, on_image};
 
     #[test]
     fn a_grasp_pixel_past_the_image_is_read_at_the_nearest_edge_pixel() {

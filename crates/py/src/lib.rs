@@ -422,6 +422,7 @@ fn _umpnet(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(benchmark_seeds, m)?)?;
     m.add_function(wrap_pyfunction!(policy::onnxruntime_in_site_packages, m)?)?;
     m.add_function(wrap_pyfunction!(policy::joint_from_fields, m)?)?;
+    m.add_function(wrap_pyfunction!(policy::mirrored_observations, m)?)?;
     m.add("DELTA", umpnet_sim::env::DELTA)?;
     m.add_class::<Env>()?;
     m.add_class::<config::EnvConfig>()?;

@@ -7,7 +7,9 @@
 )]
 use crate::arrays::{Arr2, Arr3, Arr4};
 use crate::{MAX_THREADS, policy_err, runtime_err};
-use numpy::{PyReadonlyArray3, PyReadonlyArray4, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArrayMethods, PyReadonlyArray3, PyReadonlyArray4, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -317,6 +319,28 @@ pub(crate) fn joint_from_fields<'py>(
         Some(j) => frame_joint_dict(py, &j).map(Some),
         None => Ok(None),
     }
+}
+
+/// Observations (N x H x W x 10) mirrored left-right, by the runtime's own
+/// rule: columns reversed and the world's x (point and normal) negated. The
+/// fine-tune's `--mirror` calls it, so training and `--mirror-average` see
+/// the same mirror.
+#[pyfunction]
+pub(crate) fn mirrored_observations<'py>(
+    py: Python<'py>,
+    images: Arr4<'_, f32>,
+) -> PyResult<Bound<'py, numpy::PyArray4<f32>>> {
+    let s = images.shape().to_vec();
+    if s[3] != umpnet_policy::CHANNELS {
+        return Err(PyValueError::new_err(format!(
+            "images {s:?}: expected (N, H, W, {})",
+            umpnet_policy::CHANNELS
+        )));
+    }
+    let v: Vec<f32> = images.as_array().iter().copied().collect();
+    let obs = ndarray::Array4::from_shape_vec((s[0], s[1], s[2], s[3]), v).map_err(runtime_err)?;
+    let (m, _) = umpnet_policy::mirrored_observations(obs.view()).into_raw_vec_and_offset();
+    m.into_pyarray(py).reshape([s[0], s[1], s[2], s[3]])
 }
 
 fn frame_joint_dict<'py>(py: Python<'py>, j: &FrameJoint) -> PyResult<Bound<'py, PyDict>> {

@@ -194,6 +194,28 @@ def test_policy_reads_a_joint_from_one_frame_as_the_runtime_votes_it(fixture_pac
         umpnet._umpnet.joint_from_fields(image, fields[:5], (0, 0))
 
 
+def test_the_mirror_of_an_observation_is_the_same_scene_seen_in_a_mirror():
+    """mirrored_observations (the runtime's mirror, which the fine-tune's
+    --mirror also uses) holds for the benchmark camera: it sits in the plane
+    x = 0 with its image x along the world's, so a point's x over its depth
+    depends only on the column, and is opposite in the mirrored column."""
+    obs = umpnet.Env("Door", seed=5, resolution=RES).reset()["image"]
+    h, w = obs.shape[:2]
+    seen = obs[..., 9] > 0
+    both = seen & seen[:, ::-1]
+    slope = np.where(seen, obs[..., 0] / np.where(seen, obs[..., 9], 1.0), 0.0)
+    assert both.sum() > h * w // 4
+    assert np.allclose(slope[both], -slope[:, ::-1][both], atol=1e-4)
+    m = umpnet._umpnet.mirrored_observations(obs[None])[0]
+    assert m.dtype == np.float32 and m.shape == obs.shape
+    assert np.array_equal(m[:, ::-1, [0, 6]], -obs[..., [0, 6]])
+    keep = [c for c in range(10) if c not in (0, 6)]
+    assert np.array_equal(m[:, ::-1, keep], obs[..., keep])
+    assert np.array_equal(umpnet._umpnet.mirrored_observations(m[None])[0], obs)
+    with pytest.raises(ValueError, match=r"expected \(N, H, W, 10\)"):
+        umpnet._umpnet.mirrored_observations(obs[None, ..., :9].copy())
+
+
 def panel_image(h, w, x, z):
     """An H x W observation through a pinhole at the origin looking down +z:
     a wall at z = 2 and a 0.4 m panel at depth z centred at (x, 0)."""

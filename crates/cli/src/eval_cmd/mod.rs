@@ -204,7 +204,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         a.task,
         a.direction_filter,
         a.grasp_rule,
-        a.scoring.scoring(),
+        a.scoring.resolve(),
     )?;
     let mut models = BTreeMap::new();
     for (name, dir) in &resolved.packages {
