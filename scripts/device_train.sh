@@ -12,6 +12,7 @@
 # PyTorch and the umpnet bindings on PYTHONPATH (crates/py/python, with the
 # extension built at home: it is abi3, so any Python >= 3.9 loads it). Set
 # UMPNET_GIT_COMMIT to the commit sent: the copy there may hold a stale .git.
+# TRAIN_ARGS adds flags to the policy run (e.g. TRAIN_ARGS="--mirror 0.25").
 #
 # The lent machine takes the working tree and carried paths up to 64 MiB:
 # carry the extension (crates/py/python/umpnet/_umpnet.abi3.so, 11 MB after
@@ -38,7 +39,7 @@ python3 -m umpnet_train.joint_net --out "$out/joint" --device auto --workers 8 \
 joint=$!
 python3 -m umpnet_train.train --preset gpu-medium --dense-labels 16 --renderer cpu --device auto \
   --position-from "$root/models/checkpoints/umpnet-small/checkpoint.pt" \
-  --out "$out/policy" --time-limit "$seconds" >"$out/policy.log" 2>&1
+  --out "$out/policy" --time-limit "$seconds" ${TRAIN_ARGS:-} >"$out/policy.log" 2>&1
 policy_rc=$?
 wait $joint
 joint_rc=$?

@@ -593,6 +593,55 @@ def test_a_short_seeded_run_of_the_real_update_learns_what_held_out_states_show(
     assert after[1] > before[1] + 0.05, (before, after)
 
 
+def test_mirrored_batches_are_the_mirrored_scenes_the_learner_would_see():
+    """With --mirror 1 every sampled state is mirrored: the losses equal those
+    of the same update on buffers mirrored by hand (columns reversed; x
+    negated in the points, normals and directions; the grasp column
+    reflected), drawn with the same random stream. A mirror that missed a
+    batch kind (positions, executed moves, dense labels) or an array of one
+    would differ. A share between 0 and 1 mirrors some states, and a share
+    outside [0, 1] is refused by name."""
+    import copy
+
+    import torch
+    from umpnet_train.models import UMPNet
+
+    collect.set_device(torch.device("cpu"))
+    cfg = make_config("smoke", dense_labels=4, num_envs=4, seq_start=4, seq_max=4)
+    replay, dense = _dense_data(cfg, seed=3, sequences=16)
+    torch.manual_seed(0)
+    model = UMPNet(cfg).eval()  # no batch statistics: the same batch gives the same losses
+
+    def by_hand(images, pixels, vectors):
+        images[...] = images[:, :, ::-1].copy()
+        images[..., [0, 6]] *= -1
+        pixels[:, 1] = images.shape[2] - 1 - pixels[:, 1]
+        vectors[..., 0] *= -1
+
+    seen = copy.deepcopy(replay), copy.deepcopy(dense)
+    by_hand(seen[0].pos_images, seen[0].pos_pixels, np.zeros((1, 3)))
+    by_hand(seen[0].dir_images, seen[0].dir_pixels, seen[0].dir_vectors)
+    seen[0].ref_images[...] = seen[0].ref_images[:, :, ::-1].copy()
+    seen[0].ref_images[..., [0, 6]] *= -1
+    by_hand(seen[1].images, seen[1].pixels, seen[1].vectors)
+
+    def run(share, buffers):
+        mirrored = dataclasses.replace(cfg, mirror=share)
+        out = train.losses(model, mirrored, *buffers, np.random.default_rng(7))
+        return {k: float(v.detach()) for k, v in out.items()}
+
+    plain, mirrored, expected = run(0.0, (replay, dense)), run(1.0, (replay, dense)), run(0.0, seen)
+    assert {"loss/position", "loss/aot", "loss/dense_aot"} <= expected.keys()
+    assert mirrored.keys() == expected.keys()
+    for k in expected:
+        assert np.isclose(mirrored[k], expected[k], rtol=1e-4, atol=1e-6), (k, mirrored[k], expected[k])
+    assert any(not np.isclose(plain[k], expected[k], rtol=1e-4) for k in expected if k.startswith("loss/"))
+    half = run(0.5, (replay, dense))
+    assert all(np.isfinite(v) for v in half.values()) and half != plain
+    with pytest.raises(ValueError, match="mirror 1.5: expected a share between 0 and 1"):
+        make_config("smoke", mirror=1.5)
+
+
 def test_learner_modes_update_the_same_fp32_weights():
     """Every learner mode trains the fp32 model that checkpoints and export
     read; an unknown mode is an error naming the choices."""

@@ -28,8 +28,8 @@ candidate is called toward the goal, and on objects unlike the training
 ones a head that calls more candidates still stops it sooner; a still
 weight below 1 (the shipped package's 0.5) leans it back toward moving
 (docs/relabelling.md). `--mirror P` shows that share of the training
-states mirrored left-right (docs/relabelling.md: it lifts the networks'
-AoT accuracy on the test categories and does not lift goal45's success).
+states mirrored left-right (mirror.py; the shipped package's second round
+used 0.25: docs/relabelling.md).
 """
 
 from __future__ import annotations
@@ -48,6 +48,7 @@ import torch
 import torch.nn.functional as F
 import umpnet
 
+from . import mirror
 from .collect import TRAIN_CATEGORIES, device, to_long, to_torch
 from .config import config_from_checkpoint
 from .diagnose import episode_setup, true_aot
@@ -206,26 +207,15 @@ def candidate_losses(model: UMPNet, batch: dict, dist_loss_weight: float, still_
     }
 
 
-# Channels of an observation that change sign under the mirror x -> -x: the
-# point's x and the normal's x (xyz, rgb, normal, depth; crates/policy's
-# `mirror` flips the same two).
 def mirrored(batch: dict, which: np.ndarray) -> dict:
-    """`batch` with the states at indices `which` mirrored left-right: the
-    images by the runtime's own mirror (the one `--mirror-average` uses), the
-    grasp pixel's column reflected and each candidate direction's x negated.
-    Labels are unchanged, since physics is symmetric under the mirror."""
+    """`batch` with the states at indices `which` mirrored left-right
+    (umpnet_train.mirror: images by the runtime's own mirror, the grasp
+    pixel's column reflected, each candidate direction's x negated). Labels
+    are unchanged, since physics is symmetric under the mirror."""
     out = dict(batch)
-    for key in ("image", "reference"):
-        images = batch[key].copy()
-        flipped = umpnet._umpnet.mirrored_observations(np.ascontiguousarray(images[which], dtype=np.float32))
-        images[which] = flipped.astype(images.dtype)
-        out[key] = images
-    pixel = batch["pixel"].copy()
-    pixel[which, 1] = batch["image"].shape[2] - 1 - pixel[which, 1]
-    out["pixel"] = pixel
-    candidates = batch["candidates"].copy()
-    candidates[which, :, 0] *= -1
-    out["candidates"] = candidates
+    (out["image"], out["reference"]), (out["pixel"],), (out["candidates"],), _ = mirror.states(
+        which, [batch["image"], batch["reference"]], [batch["pixel"]], [batch["candidates"]], []
+    )
     return out
 
 
@@ -269,8 +259,7 @@ def finetune(checkpoint: Path, data: dict, out: Path, s: Settings, log=print) ->
     model.train()
     for step in range(1, s.steps + 1):
         b = batch(rng.choice(train, s.batch_states))
-        if s.mirror > 0:
-            b = mirrored(b, np.flatnonzero(rng.random(s.batch_states) < s.mirror))
+        b = mirrored(b, mirror.chosen(rng, s.batch_states, s.mirror))
         losses = candidate_losses(model, b, s.dist_loss_weight, s.still_weight)
         opt.zero_grad()
         losses["loss/total"].backward()

@@ -85,6 +85,12 @@ class Config:
         "frame locates a hinge; the position net's head learns it with a squared error)",
         choices=("unit", "scaled"),
     )
+    mirror: float = option(
+        0.0,
+        "share of every batch's states shown mirrored left-right (images' columns reversed, the world's "
+        "x negated in points, normals, directions and flow fields; labels kept, since the benchmark "
+        "camera sits in the plane x = 0), beyond the paper (0: off)",
+    )
     inverse_data: str = option(
         "",
         "variant inverse: a model package whose policy makes the collected moves (epsilon-greedy, "
@@ -230,6 +236,8 @@ def make_config(preset: str = "paper", **overrides) -> Config:
         if choices and f.name in values and values[f.name] not in choices:
             expected = ", ".join(repr(c) for c in choices)
             raise ValueError(f"{f.name} {values[f.name]!r}: expected one of {expected}")
+    if not 0.0 <= float(values.get("mirror", 0.0)) <= 1.0:
+        raise ValueError(f"mirror {values['mirror']}: expected a share between 0 and 1")
     if values.get("inverse_data") and values.get("variant", "umpnet") != "inverse":
         raise ValueError("inverse_data: only the inverse variant collects with another policy's moves")
     cfg_net = values.get("direction_net", "context")

@@ -5,7 +5,9 @@ half the sequence, then back to the start), the released code's label
 thresholds, a growing sequence length, FIFO replay, balanced batches, and the
 loss 100 x MSE(distance) + CE(AoT) (+ CE(position)). With --dense-labels K the
 simulator also labels K directions at every visited state (the policy's best
-candidates and random ones), and the decoder trains on all of them.
+candidates and random ones), and the decoder trains on all of them. With
+--mirror P a share P of every batch's states is shown mirrored left-right
+(beyond the paper; mirror.py).
 How the data is gathered lives in collect.py; this file learns from it.
 
     python -m umpnet_train.train --preset cpu-small --out ../runs/small --export ../runs/small-package
@@ -31,6 +33,7 @@ import umpnet
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
+from . import mirror
 from .collect import TRAIN_CATEGORIES, collect, device, sequence_length, set_device, to_long, to_torch
 from .config import (
     LEARNER_MODES,
@@ -106,6 +109,7 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
     total = torch.zeros((), device=device())
     fields = cfg.aux_fields > 0
     imgs, pix, lab, *pos_flow = replay.sample_positions(rng, cfg.batch_position, flows=fields)
+    (imgs,), (pix,), _, pos_flow = mirror.states(mirror.chosen(rng, len(lab), cfg.mirror), [imgs], [pix], [], pos_flow)
     if train_position and len(lab) and fields:
         logits, aux = model.position.forward_fields(to_torch(imgs))
         total = total + cfg.aux_fields * flow_losses(
@@ -128,6 +132,9 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
     imgs, refs, pix, dirs, dist, aot, *dir_flow = replay.sample_directions(
         rng, cfg.batch_direction, groups, flows=fields
     )
+    (imgs, refs), (pix,), (dirs,), dir_flow = mirror.states(
+        mirror.chosen(rng, len(aot), cfg.mirror), [imgs, refs], [pix], [dirs], dir_flow
+    )
     if len(aot) and cfg.variant == "inverse":
         pred = model.inverse(to_torch(imgs), to_torch(refs), to_long(pix))
         out["loss/inverse"] = F.mse_loss(pred, to_torch(dirs))
@@ -148,6 +155,9 @@ def losses(model, cfg, replay, dense, rng, train_position=True, train_direction=
     batch = dense.sample(rng, cfg.dense_states, replay.refs, replay.ref_images) if dense is not None else None
     if batch is not None and cfg.variant != "inverse":
         imgs, refs, pix, dirs, dist, aot = batch
+        (imgs, refs), (pix,), (dirs,), _ = mirror.states(
+            mirror.chosen(rng, len(aot), cfg.mirror), [imgs, refs], [pix], [dirs], []
+        )
         k = dirs.shape[1]
         de, ae = model.encoder(to_torch(imgs), to_torch(refs), to_long(pix))
         pred_dist, logits = model.decoder(
