@@ -48,7 +48,7 @@ pub(crate) struct Policy {
 #[pymethods]
 impl Policy {
     #[new]
-    #[pyo3(signature = (model_dir, seed=0, threads=1, onnxruntime=None, direction_filter=None, grasp_rule=None))]
+    #[pyo3(signature = (model_dir, seed=0, threads=1, onnxruntime=None, direction_filter=None, grasp_rule=None, mirror_average=false))]
     fn new(
         model_dir: PathBuf,
         seed: u64,
@@ -56,6 +56,7 @@ impl Policy {
         onnxruntime: Option<PathBuf>,
         direction_filter: Option<&str>,
         grasp_rule: Option<&str>,
+        mirror_average: bool,
     ) -> PyResult<Self> {
         if !(1..=MAX_THREADS).contains(&threads) {
             return Err(PyValueError::new_err(format!(
@@ -78,7 +79,7 @@ impl Policy {
             .transpose()?;
         let pkg = ModelPackage::load(&model_dir, 1, threads, onnxruntime.as_deref())
             .map_err(policy_err)?;
-        let mut inner = UmpnetPolicy::new(Arc::new(pkg));
+        let mut inner = UmpnetPolicy::new(Arc::new(pkg)).with_mirror_average(mirror_average);
         if let Some(f) = filter {
             inner = inner.with_direction_filter(f);
         }

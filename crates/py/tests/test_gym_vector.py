@@ -272,19 +272,29 @@ def test_documented_python_runs_as_written(doc, tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize(
-    ("task", "direction_filter"),
-    [("goal", None), ("exploration", None), ("goal", "goal45"), ("exploration", "onward45")],
+    ("task", "direction_filter", "mirror_average"),
+    [
+        ("goal", None, False),
+        ("exploration", None, False),
+        ("goal", "goal45", False),
+        ("exploration", "onward45", False),
+        ("goal", None, True),
+    ],
 )
-def test_the_shipped_policy_through_gym_makes_the_moves_umpnet_eval_made(task, direction_filter, tmp_path):
+def test_the_shipped_policy_through_gym_makes_the_moves_umpnet_eval_made(
+    task, direction_filter, mirror_average, tmp_path
+):
     """On the benchmark's scenes and seeds, the shipped policy driven through
     gymnasium by Policy.act (with each step's info) makes exactly the moves
     `umpnet eval` recorded and ends its episodes the same way; under the
     filters that read the gripper's own motion (from ``info``) and the
-    grasped part's joint (read at the grasp) too."""
+    grasped part's joint (read at the grasp) too, and scoring each move on
+    the mirrored scene as well (``mirror_average``, ``--mirror-average``)."""
     root = Path(__file__).resolve().parents[3]
     binary = os.environ.get("UMPNET_BIN", str(root / "target/release/umpnet"))
     out = tmp_path / "eval"
     filters = ["--direction-filter", direction_filter] if direction_filter else []
+    filters += ["--mirror-average"] if mirror_average else []
     subprocess.run(
         [binary, "eval", "--task", task, "--categories", "Door,Microwave,Switch", "--episodes-per-category", "3",
          "--policies", "umpnet", "--model", str(SHIPPED_MODEL), "--out", str(out), *filters],
@@ -293,7 +303,7 @@ def test_the_shipped_policy_through_gym_makes_the_moves_umpnet_eval_made(task, d
     episodes = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
     episodes = [e for e in episodes if e["policy"] == "umpnet"]
     assert len(episodes) == 9
-    policy = umpnet.Policy.default(direction_filter=direction_filter)
+    policy = umpnet.Policy.default(direction_filter=direction_filter, mirror_average=mirror_average)
     env = gym.make(f"umpnet/{'Goal' if task == 'goal' else 'Explore'}-v0", resolution=policy.resolution)
     compared = 0
     for e in episodes:

@@ -84,6 +84,7 @@ class Policy:
         onnxruntime: str | None = None,
         direction_filter: str | None = None,
         grasp_rule: str | None = None,
+        mirror_average: bool = False,
     ) -> None: ...
     @property
     def resolution(self) -> tuple[int, int]: ...

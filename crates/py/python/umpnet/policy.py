@@ -53,11 +53,20 @@ class Policy(_Policy):
     ``prev90``, ``joint45``, ``goal45`` or ``onward45``), as ``--direction-filter`` does
     on the command line; ``grasp_rule`` replaces the package's ``grasp``
     (``affordance``, the paper's, ``affordance_times_movable`` or
-    ``affordance_times_movable_lever``), as ``--grasp-rule`` does.
+    ``affordance_times_movable_lever``), as ``--grasp-rule`` does;
+    ``mirror_average=True`` scores every candidate also on the scene mirrored
+    left-right and acts on the mean, as ``--mirror-average`` does.
     """
 
     def __new__(
-        cls, model_dir, seed: int = 0, threads: int = 1, onnxruntime=None, direction_filter=None, grasp_rule=None
+        cls,
+        model_dir,
+        seed: int = 0,
+        threads: int = 1,
+        onnxruntime=None,
+        direction_filter=None,
+        grasp_rule=None,
+        mirror_average: bool = False,
     ):
         if onnxruntime is None and "ORT_DYLIB_PATH" not in os.environ:
             onnxruntime = onnxruntime_library()
@@ -69,18 +78,31 @@ class Policy(_Policy):
             None if onnxruntime is None else os.fspath(onnxruntime),
             direction_filter,
             grasp_rule,
+            mirror_average,
         )
 
     @classmethod
     def default(
-        cls, seed: int = 0, threads: int = 1, direction_filter: str | None = None, grasp_rule: str | None = None
+        cls,
+        seed: int = 0,
+        threads: int = 1,
+        direction_filter: str | None = None,
+        grasp_rule: str | None = None,
+        mirror_average: bool = False,
     ) -> Policy:
         """The shipped model package (``umpnet-gpu-medium``), as installed with the wheel."""
         if not (SHIPPED_MODEL / "model.json").is_file():
             raise FileNotFoundError(
                 f"the shipped model is not at {SHIPPED_MODEL}: this install of umpnet was built without it"
             )
-        return cls(SHIPPED_MODEL, seed=seed, threads=threads, direction_filter=direction_filter, grasp_rule=grasp_rule)
+        return cls(
+            SHIPPED_MODEL,
+            seed=seed,
+            threads=threads,
+            direction_filter=direction_filter,
+            grasp_rule=grasp_rule,
+            mirror_average=mirror_average,
+        )
 
     def act(self, obs: dict, task: str = "exploration", info: dict | None = None) -> dict:
         """The gym action for ``obs``: the grasp pixel in phase 0, then a
