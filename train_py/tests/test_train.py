@@ -317,6 +317,11 @@ def test_dense_label_training_and_diagnostics_on_a_tiny_package(tmp_path, capsys
         for key in ("aot_accuracy", "position_validity", "success"):
             v = s["goal"][key]
             assert v is None or 0.0 <= v <= 1.0, (key, v)
+    assert report["mirror_average"] is False
+    # Scored on the scene and its mirror image, as eval --mirror-average does.
+    assert diagnose.main([str(pkg), "--episodes", "2", "--json", "--mirror-average"]) == 0
+    mirrored = json.loads(capsys.readouterr().out)
+    assert mirrored["mirror_average"] is True and mirrored["splits"]["test"]["goal"]["episodes"] == 2
     assert diagnose.main([str(tmp_path), "--episodes", "2"]) == 2  # not a package
 
 

@@ -32,6 +32,9 @@ environment, with the episode's memory (stalled moves, how the gripper went,
 the joint read at the grasp), so the progress share and success are those of
 the policy as it runs. A filter rewrites what the heads said of the candidates
 it rules on, so those runs do not score AoT accuracy or distance ranks.
+`--mirror-average` scores every candidate as `umpnet eval --mirror-average`
+does, on the scene and on its mirror image, and the heads' figures are those
+of the mean.
 """
 
 from __future__ import annotations
@@ -148,9 +151,18 @@ class Episodes:
     tried again, and the direction filter reads the joint at the grasp and how
     the gripper went."""
 
-    def __init__(self, package: Path, n: int, seed: int, direction_filter: str, threads: int = 1):
+    def __init__(
+        self, package: Path, n: int, seed: int, direction_filter: str, threads: int = 1, mirror_average: bool = False
+    ):
         self.policies = [
-            umpnet.Policy(str(package), seed=seed, threads=threads, direction_filter=direction_filter) for _ in range(n)
+            umpnet.Policy(
+                str(package),
+                seed=seed,
+                threads=threads,
+                direction_filter=direction_filter,
+                mirror_average=mirror_average,
+            )
+            for _ in range(n)
         ]
         self.stream = np.random.default_rng(seed)
 
@@ -305,26 +317,35 @@ def measure(env, res, dirs, live, value, start, goal, task, tally, acc, heads=Tr
 
 
 def diagnose(
-    package: Path, episodes: int, seed: int, physics: str, threads: int = 1, filters: dict | None = None
+    package: Path,
+    episodes: int,
+    seed: int,
+    physics: str,
+    threads: int = 1,
+    filters: dict | None = None,
+    mirror_average: bool = False,
 ) -> dict:
     """`filters` maps a task ("exploration", "goal") to the direction filter
     its learned decisions run under, with the episode's memory, as `umpnet
     eval --direction-filter` runs them; a task not in it gets the networks'
-    stateless choice (the paper's policy)."""
+    stateless choice (the paper's policy). With `mirror_average` every
+    candidate's scores are the mean over the scene and its mirror image, as
+    `umpnet eval --mirror-average` scores them."""
     filters = filters or {}
-    policy = umpnet.Policy(str(package), seed=seed, threads=threads)
+    policy = umpnet.Policy(str(package), seed=seed, threads=threads, mirror_average=mirror_average)
     report = {
         "package": str(package),
         "episodes": episodes,
         "seed": seed,
         "physics": physics,
         "filters": filters,
+        "mirror_average": mirror_average,
         "splits": {},
     }
 
     def memory(task, s):
         f = filters.get(task)
-        return None if f is None else Episodes(package, 8, s, f, threads)
+        return None if f is None else Episodes(package, 8, s, f, threads, mirror_average)
 
     for split in ("train", "test"):
         s = SEED_OFFSET + seed * 1000 + (0 if split == "train" else 500)
@@ -391,6 +412,12 @@ def main(argv=None) -> int:
     p.add_argument(
         "--goal-filter", choices=GOAL_FILTERS, help="the same toward a goal (e.g. goal45), in the swap table too"
     )
+    p.add_argument(
+        "--mirror-average",
+        action="store_true",
+        help="score every candidate also on the scene mirrored left-right and use the mean, as "
+        "`umpnet eval --mirror-average` does (beyond the paper)",
+    )
     a = p.parse_args(argv)
     if a.episodes < 1:
         p.error(f"--episodes {a.episodes}: expected at least 1")
@@ -399,7 +426,7 @@ def main(argv=None) -> int:
         return 2
     try:
         filters = {t: f for t, f in (("exploration", a.explore_filter), ("goal", a.goal_filter)) if f}
-        report = diagnose(a.package, a.episodes, a.seed, a.physics, a.threads, filters)
+        report = diagnose(a.package, a.episodes, a.seed, a.physics, a.threads, filters, a.mirror_average)
     except (ValueError, RuntimeError) as e:
         print(f"error: {a.package}: {e}", file=sys.stderr)
         return 2
