@@ -125,9 +125,17 @@ pub const MIRRORED_CHANNELS: [usize; 2] = [0, 6];
 
 /// A batch of observations (B x H x W x 10) mirrored left-right: columns
 /// reversed, and the world's x (position and normal) negated. The benchmark
-/// camera sits in the plane x = 0, so this is the same scene mirrored. The
-/// runtime's `--mirror-average` and the fine-tune's `--mirror` both use it.
-pub fn mirrored_observations(obs: ArrayView4<'_, f32>) -> Array4<f32> {
+/// camera sits in the plane x = 0, so this is the same scene mirrored. It is
+/// the one mirror: the runtime's `--mirror-average` calls it here, and
+/// training (`train --mirror`, the fine-tune's `--mirror`) through the Python
+/// binding, so the two cannot disagree on which channels flip.
+pub fn mirrored_observations(obs: ArrayView4<'_, f32>) -> Result<Array4<f32>> {
+    if obs.dim().3 != CHANNELS {
+        return Err(PolicyError::Input(format!(
+            "observations {:?}: expected (N, H, W, {CHANNELS})",
+            obs.shape()
+        )));
+    }
     // In standard (row-major) layout: `to_owned` of the reversed view would
     // keep its memory order, and callers read the raw buffer.
     let mut m = obs
@@ -135,11 +143,9 @@ pub fn mirrored_observations(obs: ArrayView4<'_, f32>) -> Array4<f32> {
         .as_standard_layout()
         .into_owned();
     for ch in MIRRORED_CHANNELS {
-        if ch < m.dim().3 {
-            m.index_axis_mut(Axis(3), ch).mapv_inplace(|v| -v);
-        }
+        m.index_axis_mut(Axis(3), ch).mapv_inplace(|v| -v);
     }
-    m
+    Ok(m)
 }
 
 /// Builds the H x W x 10 observation. Normals come from the depth image: the
@@ -263,14 +269,20 @@ mod tests {
         let obs = ndarray::Array4::from_shape_fn((2, 3, 4, 10), |(b, r, c, ch)| {
             (b * 1000 + r * 100 + c * 10 + ch) as f32
         });
-        let m = mirrored_observations(obs.view());
+        let m = mirrored_observations(obs.view()).unwrap();
         for ((b, r, c, ch), &v) in m.indexed_iter() {
             let was = obs[[b, r, 3 - c, ch]];
             let want = if ch == 0 || ch == 6 { -was } else { was };
             assert_eq!(v, want, "{b} {r} {c} {ch}");
         }
         assert!(m.is_standard_layout());
-        assert_eq!(mirrored_observations(m.view()), obs);
+        assert_eq!(mirrored_observations(m.view()).unwrap(), obs);
+        let nine = ndarray::Array4::<f32>::zeros((1, 3, 4, 9));
+        let err = mirrored_observations(nine.view()).unwrap_err().to_string();
+        assert!(
+            err.contains("[1, 3, 4, 9]") && err.contains("(N, H, W, 10)"),
+            "{err}"
+        );
     }
 
     #[test]

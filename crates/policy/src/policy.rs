@@ -352,8 +352,8 @@ impl UmpnetPolicy {
         }
         let mirrored = if self.mirror_average {
             let (mo, mr, mp) = (
-                mirrored_observations(obs.view()),
-                mirrored_observations(refs.view()),
+                mirrored_observations(obs.view())?,
+                mirrored_observations(refs.view())?,
                 {
                     let mut p = pix.clone();
                     p.column_mut(1).mapv_inplace(|c| w as i64 - 1 - c);

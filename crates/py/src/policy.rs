@@ -322,25 +322,21 @@ pub(crate) fn joint_from_fields<'py>(
     }
 }
 
-/// Observations (N x H x W x 10) mirrored left-right, by the runtime's own
-/// rule: columns reversed and the world's x (point and normal) negated. The
-/// fine-tune's `--mirror` calls it, so training and `--mirror-average` see
-/// the same mirror.
+/// Observations (N x H x W x 10) mirrored left-right by the runtime's own
+/// rule: columns reversed and the world's x (point and normal) negated.
+/// Training's mirrors (`train --mirror`, the fine-tune's `--mirror`) call it,
+/// so training and `--mirror-average` see the same mirror.
 #[pyfunction]
 pub(crate) fn mirrored_observations<'py>(
     py: Python<'py>,
     images: Arr4<'_, f32>,
 ) -> PyResult<Bound<'py, numpy::PyArray4<f32>>> {
+    // numpy's ndarray is another version than the policy crate's: copy.
     let s = images.shape().to_vec();
-    if s[3] != umpnet_policy::CHANNELS {
-        return Err(PyValueError::new_err(format!(
-            "images {s:?}: expected (N, H, W, {})",
-            umpnet_policy::CHANNELS
-        )));
-    }
     let v: Vec<f32> = images.as_array().iter().copied().collect();
     let obs = ndarray::Array4::from_shape_vec((s[0], s[1], s[2], s[3]), v).map_err(runtime_err)?;
-    let (m, _) = umpnet_policy::mirrored_observations(obs.view()).into_raw_vec_and_offset();
+    let m = umpnet_policy::mirrored_observations(obs.view()).map_err(policy_err)?;
+    let (m, _) = m.into_raw_vec_and_offset();
     m.into_pyarray(py).reshape([s[0], s[1], s[2], s[3]])
 }
 
