@@ -10,6 +10,8 @@ pub mod policy;
 pub mod protocol;
 pub mod rewards;
 pub mod scripted;
+pub mod shard;
+pub mod stats;
 pub mod train_env;
 
 pub use policy::{Decision, Observation, Policy, StepRecord};
