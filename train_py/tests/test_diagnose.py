@@ -40,6 +40,20 @@ def test_the_heads_are_scored_only_where_no_filter_rewrote_them(package):
     confusion = np.array(plain["aot_confusion"])
     assert confusion.shape == (3, 3)
     assert plain["aot_accuracy"] == pytest.approx(np.trace(confusion) / confusion.sum())
+    seen = confusion.sum(1) > 0
+    recalls = np.diag(confusion)[seen] / confusion.sum(1)[seen]
+    assert plain["aot_balanced_accuracy"] == pytest.approx(recalls.mean())
+    # Per category: the episodes and the candidates split the run's, and a
+    # category's figures are its own episodes' (one category alone is the run).
+    by = plain["by_category"]
+    assert sum(f["episodes"] for f in by.values()) == plain["episodes"] == 2
+    assert np.array_equal(sum(np.array(f["aot_confusion"] or np.zeros((3, 3))) for f in by.values()), confusion)
+    alone = diagnose.run(policy, "train", "exploration", 1, 11, "reference", position="oracle", n=2).summary()
+    first = next(iter(by))
+    assert list(alone["by_category"]) == [first]
+    assert alone["by_category"][first] == {
+        k: v for k, v in alone.items() if k not in ("by_category", "rank_correlation", "states")
+    }
     # The chosen direction is one of the probed ones: never more progress than the best.
     assert plain["progress_share"] is None or plain["progress_share"] <= 1.0 + 1e-9
     memory = diagnose.Episodes(package, 2, 11, "none")

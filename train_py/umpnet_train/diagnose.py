@@ -11,8 +11,9 @@ direction it chose) is simulated on a copy of the articulation
 - AoT accuracy: the predicted Arrow of Time of each candidate against the
   true one, relative to the reference image's state (the start when exploring,
   the goal in the goal task), with the training labels' thresholds; with the
-  confusion of the three classes, and the sign's accuracy where the part
-  moved past delta and the head said it would;
+  confusion of the three classes, the balanced accuracy (the mean of their
+  recalls, which calling more candidates still cannot raise), and the sign's
+  accuracy where the part moved past delta and the head said it would;
 - rank correlation: Spearman's rho of predicted against true distance over one
   state's candidates (median over states);
 - progress share: the chosen direction's progress (away from the start when
@@ -24,6 +25,8 @@ direction it chose) is simulated on a copy of the articulation
   privileged oracle.
 
 Held-out: the scenes come from seeds training never uses (see SEED_OFFSET).
+Every figure is also given per category (`by_category` in the JSON;
+`--by-category` prints it).
 
 By default each decision is the networks' own at that state alone (the
 paper's policy, no memory). `--explore-filter F` / `--goal-filter F` decide as
@@ -64,49 +67,73 @@ GOAL_FILTERS = ("none", "normal90", "joint45", "goal45")
 class Tally:
     """What one run of episodes measured."""
 
-    episodes: int = 0
-    valid_positions: int = 0
-    successes: int = 0
     states: int = 0
     rhos: list[float] = field(default_factory=list)
-    # AoT truth (rows) against prediction (columns), classes -1, 0, +1.
-    confusion: np.ndarray = field(default_factory=lambda: np.zeros((3, 3), np.int64))
-    # One row per episode: AoT hits, AoT candidates, chosen progress, best progress.
+    # One row per episode (PER_EPISODE), and its category.
     rows: list[np.ndarray] = field(default_factory=list)
+    categories: list[str] = field(default_factory=list)
+    # Per category, AoT truth (rows) against prediction (columns), classes -1, 0, +1.
+    confusions: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def episodes(self) -> int:
+        return len(self.rows)
+
+    def count(self, category: str, truth: np.ndarray, predicted: np.ndarray) -> None:
+        c = self.confusions.setdefault(category, np.zeros((3, 3), np.int64))
+        np.add.at(c, (truth + 1, predicted + 1), 1)
 
     def summary(self) -> dict:
-        def share(a, b):
-            return a / b if b else None
-
         rows = np.array(self.rows).reshape(-1, len(PER_EPISODE))
-        hits, total, chosen, best = rows.sum(0)
-        return {
-            "episodes": self.episodes,
-            "position_validity": share(self.valid_positions, self.episodes),
-            "success": share(self.successes, self.episodes),
-            "aot_accuracy": share(hits, total),
-            "aot_accuracy_95": ratio_interval(rows[:, 0], rows[:, 1]),
-            "aot_confusion": self.confusion.tolist() if self.confusion.any() else None,
-            # Of the candidates that moved the part past delta and were predicted
-            # to: how often the arrow's sign was right.
-            "aot_sign_accuracy": share(
-                int(self.confusion[0, 0] + self.confusion[2, 2]), int(self.confusion[np.ix_([0, 2], [0, 2])].sum())
-            ),
-            "rank_correlation": float(np.median(self.rhos)) if self.rhos else None,
-            "progress_share": share(chosen, best),
-            "progress_share_95": ratio_interval(rows[:, 2], rows[:, 3]),
-            "states": self.states,
+        confusion = sum(self.confusions.values(), np.zeros((3, 3), np.int64))
+        out = figures(rows, confusion)
+        out["rank_correlation"] = float(np.median(self.rhos)) if self.rhos else None
+        out["states"] = self.states
+        cats = np.array(self.categories)
+        out["by_category"] = {
+            c: figures(rows[cats == c], self.confusions.get(c, np.zeros((3, 3), np.int64)))
+            for c in dict.fromkeys(self.categories)
         }
+        return out
 
 
-PER_EPISODE = ("aot_hits", "aot_total", "chosen_progress", "best_progress")
+PER_EPISODE = ("aot_hits", "aot_total", "chosen_progress", "best_progress", "valid_position", "success")
+
+
+def figures(rows: np.ndarray, confusion: np.ndarray) -> dict:
+    """The figures of some episodes (rows of PER_EPISODE) and their AoT confusion."""
+
+    def share(a, b):
+        return float(a / b) if b else None
+
+    hits, total, chosen, best, valid, success = rows.sum(0) if len(rows) else np.zeros(len(PER_EPISODE))
+    truths = confusion.sum(1)
+    recalls = [confusion[k, k] / truths[k] for k in range(3) if truths[k]]
+    return {
+        "episodes": len(rows),
+        "position_validity": share(valid, len(rows)),
+        "success": share(success, len(rows)),
+        "aot_accuracy": share(hits, total),
+        "aot_accuracy_95": ratio_interval(rows[:, 0], rows[:, 1]),
+        # The mean of the three classes' recalls: unlike the accuracy, a head
+        # cannot raise it by calling more candidates still (the commonest class).
+        "aot_balanced_accuracy": float(np.mean(recalls)) if recalls else None,
+        "aot_confusion": confusion.tolist() if confusion.any() else None,
+        # Of the candidates that moved the part past delta and were predicted
+        # to: how often the arrow's sign was right.
+        "aot_sign_accuracy": share(
+            int(confusion[0, 0] + confusion[2, 2]), int(confusion[np.ix_([0, 2], [0, 2])].sum())
+        ),
+        "progress_share": share(chosen, best),
+        "progress_share_95": ratio_interval(rows[:, 2], rows[:, 3]),
+    }
 
 
 def ratio_interval(num: np.ndarray, den: np.ndarray, resamples: int = 2000) -> list[float] | None:
     """A 95% bootstrap interval of sum(num) / sum(den), resampling episodes
     (the states of one episode are not independent); None with no denominator.
     Seeded: the same rows give the same interval."""
-    if den.sum() <= 0:
+    if len(den) == 0 or den.sum() <= 0:
         return None
     rng = np.random.default_rng(0)
     pick = rng.integers(len(den), size=(resamples, len(den)))
@@ -259,7 +286,7 @@ def run(
                 live &= np.array([r["direction"] is not None for r in res])
                 if probe and live.any():
                     counted = live & (np.arange(n) < take)
-                    measure(env, res, dirs, counted, value, start, goal, task, tally, acc, heads=memory is None)
+                    measure(env, res, dirs, counted, value, start, goal, task, tally, acc, scenes, memory is None)
             else:
                 dirs = np.array(
                     [d if isinstance(d, list) else [0.0, 0.0, 1.0] for d in env.scripted_actions("oracle")], np.float32
@@ -279,14 +306,13 @@ def run(
                 reached = (np.abs(after - start) > thr) & ((after < lower + thr) | (after > upper - thr))
             success |= live & reached
             live &= ~reached
+        acc[:, 4], acc[:, 5] = valid, success
         tally.rows.extend(acc[:take])
-        tally.episodes += take
-        tally.valid_positions += int(valid[:take].sum())
-        tally.successes += int(success[:take].sum())
+        tally.categories.extend(s["category"] for s in scenes[:take])
     return tally
 
 
-def measure(env, res, dirs, live, value, start, goal, task, tally, acc, heads=True):
+def measure(env, res, dirs, live, value, start, goal, task, tally, acc, scenes, heads=True):
     """Simulates every candidate and the chosen direction at the `live`
     states, adding to each episode's row of `acc` (PER_EPISODE); `heads`:
     also score the heads' Arrow of Time and distance ranks."""
@@ -306,7 +332,7 @@ def measure(env, res, dirs, live, value, start, goal, task, tally, acc, heads=Tr
             pred = np.asarray(res[i]["aot"])
             acc[i, 0] += int((pred == truth).sum())
             acc[i, 1] += m
-            np.add.at(tally.confusion, (truth + 1, pred + 1), 1)
+            tally.count(scenes[i]["category"], truth, pred)
             rho = spearman(np.asarray(res[i]["distance"], np.float64), labels["r_dist"][i, :m].astype(np.float64))
             if rho is not None:
                 tally.rhos.append(rho)
@@ -370,6 +396,18 @@ def fmt(v, interval=None):
     return f"{v:.2f}" + ("" if interval is None else f" [{interval[0]:.2f}, {interval[1]:.2f}]")
 
 
+def print_by_category(r: dict) -> None:
+    """Per category of each split: where the heads and the policy lose."""
+    head = ("episodes", "AoT acc", "balanced", "chosen/best", "success")
+    for split, tasks in r["splits"].items():
+        for task in ("exploration", "goal"):
+            print(f"\n{split} categories, {task}")
+            print(f"{'category':18} " + " ".join(f"{h:>11}" for h in head))
+            for cat, f in tasks[task]["by_category"].items():
+                keys = ("aot_accuracy", "aot_balanced_accuracy", "progress_share", "success")
+                print(f"{cat:18} {f['episodes']:>11} " + " ".join(f"{fmt(f[k]):>11}" for k in keys))
+
+
 def print_report(r: dict) -> None:
     print(f"{r['package']}: {r['episodes']} episodes per split and task, seed {r['seed']}, {r['physics']} physics")
     for task, f in r.get("filters", {}).items():
@@ -377,6 +415,8 @@ def print_report(r: dict) -> None:
     rows = [
         ("AoT accuracy (exploration)", "exploration", "aot_accuracy"),
         ("AoT accuracy (goal)", "goal", "aot_accuracy"),
+        ("AoT balanced accuracy (exploration)", "exploration", "aot_balanced_accuracy"),
+        ("AoT balanced accuracy (goal)", "goal", "aot_balanced_accuracy"),
         ("AoT sign, moved and predicted to (exploration)", "exploration", "aot_sign_accuracy"),
         ("AoT sign, moved and predicted to (goal)", "goal", "aot_sign_accuracy"),
         ("distance rank correlation (exploration)", "exploration", "rank_correlation"),
@@ -418,6 +458,9 @@ def main(argv=None) -> int:
         help="score every candidate also on the scene mirrored left-right and use the mean, as "
         "`umpnet eval --mirror-average` does (beyond the paper)",
     )
+    p.add_argument(
+        "--by-category", action="store_true", help="also print the figures per category (the JSON always has them)"
+    )
     a = p.parse_args(argv)
     if a.episodes < 1:
         p.error(f"--episodes {a.episodes}: expected at least 1")
@@ -434,6 +477,8 @@ def main(argv=None) -> int:
         print(json.dumps(report, indent=2))
     else:
         print_report(report)
+        if a.by_category:
+            print_by_category(report)
     return 0
 
 
