@@ -93,3 +93,21 @@ def test_a_filter_that_does_not_serve_the_task_is_refused_by_name(package, capsy
             diagnose.main([str(package), flag, name])
         assert e.value.code == 2
         assert flag in capsys.readouterr().err
+
+
+def test_categories_limit_the_run_and_a_split_without_them_is_left_out(package, capsys):
+    report = diagnose.diagnose(package, 2, 0, "reference", categories=["Door"])
+    assert report["categories"] == ["Door"] and list(report["splits"]) == ["test"]
+    for task in ("exploration", "goal"):
+        figures = report["splits"]["test"][task]
+        assert list(figures["by_category"]) == ["Door"] and figures["episodes"] == 2
+    both = diagnose.diagnose(package, 2, 0, "reference", categories=["Door", "Laptop"])
+    assert list(both["splits"]) == ["train", "test"]
+    assert list(both["splits"]["train"]["goal"]["by_category"]) == ["Laptop"]
+    with pytest.raises(ValueError, match="'Dor'"):
+        diagnose.diagnose(package, 2, 0, "reference", categories=["Dor"])
+    with pytest.raises(SystemExit) as e:
+        diagnose.main([str(package), "--categories", "Door,Dor"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "--categories" in err and "'Dor'" in err and "Laptop" in err

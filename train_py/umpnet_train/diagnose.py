@@ -26,7 +26,7 @@ direction it chose) is simulated on a copy of the articulation
 
 Held-out: the scenes come from seeds training never uses (see SEED_OFFSET).
 Every figure is also given per category (`by_category` in the JSON;
-`--by-category` prints it).
+`--by-category` prints it); `--categories A,B` runs only those.
 
 By default each decision is the networks' own at that state alone (the
 paper's policy, no memory). `--explore-filter F` / `--goal-filter F` decide as
@@ -231,9 +231,21 @@ def episode_setup(scenes, joint, task):
 
 
 def run(
-    policy, split, task, episodes, seed, physics, position="learned", direction="learned", probe=True, n=8, memory=None
+    policy,
+    split,
+    task,
+    episodes,
+    seed,
+    physics,
+    position="learned",
+    direction="learned",
+    probe=True,
+    n=8,
+    memory=None,
+    categories=None,
 ):
-    """Episodes of `task` on `split`'s categories; `position`/`direction` are
+    """Episodes of `task` on `split`'s categories (or those of them in
+    `categories`); `position`/`direction` are
     "learned" or "oracle". Probing (the direction diagnostics) runs only where
     the learned directions act. `memory` (an [`Episodes`] of n policies) makes
     the learned decisions as `umpnet eval` does, under its direction filter;
@@ -241,7 +253,13 @@ def run(
     only then are the heads' Arrow of Time and distance ranks scored (a
     filter overrides what the heads said of the candidates it rules on)."""
     env = umpnet.VecEnv(
-        n, category=SPLITS[split], split=split, seed=seed, resolution=policy.resolution, task=task, physics=physics
+        n,
+        category=categories or SPLITS[split],
+        split=split,
+        seed=seed,
+        resolution=policy.resolution,
+        task=task,
+        physics=physics,
     )
     mode = "goal" if task == "goal" else "explore"
     tally = Tally()
@@ -342,6 +360,15 @@ def measure(env, res, dirs, live, value, start, goal, task, tally, acc, scenes, 
         acc[i, 3] += float(max(gain.max(), 0.0))
 
 
+def unknown_category(categories: list[str] | None) -> str | None:
+    """What is wrong with the first name that is no benchmark category, if any."""
+    known = SPLITS["train"] + SPLITS["test"]
+    for c in categories or []:
+        if c not in known:
+            return f"category {c!r}: expected one of {', '.join(known)}"
+    return None
+
+
 def diagnose(
     package: Path,
     episodes: int,
@@ -350,14 +377,18 @@ def diagnose(
     threads: int = 1,
     filters: dict | None = None,
     mirror_average: bool = False,
+    categories: list[str] | None = None,
 ) -> dict:
-    """`filters` maps a task ("exploration", "goal") to the direction filter
+    """`categories` limits the run to those categories (a split with none of
+    them is left out of the report). `filters` maps a task ("exploration", "goal") to the direction filter
     its learned decisions run under, with the episode's memory, as `umpnet
     eval --direction-filter` runs them; a task not in it gets the networks'
     stateless choice (the paper's policy). With `mirror_average` every
     candidate's scores are the mean over the scene and its mirror image, as
     `umpnet eval --mirror-average` scores them."""
     filters = filters or {}
+    if (bad := unknown_category(categories)) is not None:
+        raise ValueError(bad)
     policy = umpnet.Policy(str(package), seed=seed, threads=threads, mirror_average=mirror_average)
     report = {
         "package": str(package),
@@ -366,6 +397,7 @@ def diagnose(
         "physics": physics,
         "filters": filters,
         "mirror_average": mirror_average,
+        "categories": categories,
         "splits": {},
     }
 
@@ -374,16 +406,22 @@ def diagnose(
         return None if f is None else Episodes(package, 8, s, f, threads, mirror_average)
 
     for split in ("train", "test"):
+        cats = [c for c in SPLITS[split] if categories is None or c in categories]
+        if not cats:
+            continue
         s = SEED_OFFSET + seed * 1000 + (0 if split == "train" else 500)
-        explore = run(policy, split, "exploration", episodes, s, physics, memory=memory("exploration", s)).summary()
-        goal = run(policy, split, "goal", episodes, s + 1, physics, memory=memory("goal", s + 1)).summary()
+
+        on = {"categories": cats}
+        explore = run(policy, split, "exploration", episodes, s, physics, memory=memory("exploration", s), **on)
+        explore = explore.summary()
+        goal = run(policy, split, "goal", episodes, s + 1, physics, memory=memory("goal", s + 1), **on).summary()
         swap = {
             "learned/learned": goal["success"],
-            "learned/oracle": run(policy, split, "goal", episodes, s + 1, physics, direction="oracle").summary()[
+            "learned/oracle": run(policy, split, "goal", episodes, s + 1, physics, direction="oracle", **on).summary()[
                 "success"
             ],
             "oracle/learned": run(
-                policy, split, "goal", episodes, s + 1, physics, position="oracle", memory=memory("goal", s + 1)
+                policy, split, "goal", episodes, s + 1, physics, position="oracle", memory=memory("goal", s + 1), **on
             ).summary()["success"],
         }
         report["splits"][split] = {"exploration": explore, "goal": goal, "swap": swap}
@@ -426,13 +464,16 @@ def print_report(r: dict) -> None:
         ("position validity (exploration)", "exploration", "position_validity"),
         ("position validity (goal)", "goal", "position_validity"),
     ]
-    print(f"{'diagnostic (95% interval over episodes)':48} {'train':>18} {'test':>18}")
+    splits = list(r["splits"])
+    if r.get("categories"):
+        print(f"categories: {', '.join(r['categories'])}")
+    print(f"{'diagnostic (95% interval over episodes)':48} " + " ".join(f"{s:>18}" for s in splits))
     for name, task, key in rows:
-        cells = (fmt(r["splits"][s][task][key], r["splits"][s][task].get(key + "_95")) for s in ("train", "test"))
+        cells = (fmt(r["splits"][s][task][key], r["splits"][s][task].get(key + "_95")) for s in splits)
         print(f"{name:48} " + " ".join(f"{c:>18}" for c in cells))
-    print(f"\n{'goal success: position / direction':48} {'train':>18} {'test':>18}")
+    print(f"\n{'goal success: position / direction':48} " + " ".join(f"{s:>18}" for s in splits))
     for combo in ("learned/learned", "learned/oracle", "oracle/learned"):
-        print(f"{combo:48} " + " ".join(f"{fmt(r['splits'][s]['swap'][combo]):>18}" for s in ("train", "test")))
+        print(f"{combo:48} " + " ".join(f"{fmt(r['splits'][s]['swap'][combo]):>18}" for s in splits))
 
 
 def main(argv=None) -> int:
@@ -459,17 +500,24 @@ def main(argv=None) -> int:
         "`umpnet eval --mirror-average` does (beyond the paper)",
     )
     p.add_argument(
+        "--categories",
+        help="only these categories, comma-separated (e.g. Bucket,Dishwasher): more episodes where a model loses",
+    )
+    p.add_argument(
         "--by-category", action="store_true", help="also print the figures per category (the JSON always has them)"
     )
     a = p.parse_args(argv)
     if a.episodes < 1:
         p.error(f"--episodes {a.episodes}: expected at least 1")
+    categories = [c.strip() for c in a.categories.split(",") if c.strip()] if a.categories else None
+    if (bad := unknown_category(categories)) is not None:
+        p.error(f"--categories: {bad}")
     if not (a.package / "model.json").is_file():
         print(f"error: {a.package}: no model.json (expected a model package directory)", file=sys.stderr)
         return 2
     try:
         filters = {t: f for t, f in (("exploration", a.explore_filter), ("goal", a.goal_filter)) if f}
-        report = diagnose(a.package, a.episodes, a.seed, a.physics, a.threads, filters, a.mirror_average)
+        report = diagnose(a.package, a.episodes, a.seed, a.physics, a.threads, filters, a.mirror_average, categories)
     except (ValueError, RuntimeError) as e:
         print(f"error: {a.package}: {e}", file=sys.stderr)
         return 2
