@@ -331,13 +331,10 @@ pub(crate) fn mirrored_observations<'py>(
     py: Python<'py>,
     images: Arr4<'_, f32>,
 ) -> PyResult<Bound<'py, numpy::PyArray4<f32>>> {
-    // numpy's ndarray is another version than the policy crate's: copy.
-    let s = images.shape().to_vec();
-    let v: Vec<f32> = images.as_array().iter().copied().collect();
-    let obs = ndarray::Array4::from_shape_vec((s[0], s[1], s[2], s[3]), v).map_err(runtime_err)?;
-    let m = umpnet_policy::mirrored_observations(obs.view()).map_err(policy_err)?;
+    let m = umpnet_policy::mirrored_observations(to_array4(&images)?.view()).map_err(policy_err)?;
+    let (n, h, w, c) = m.dim();
     let (m, _) = m.into_raw_vec_and_offset();
-    m.into_pyarray(py).reshape([s[0], s[1], s[2], s[3]])
+    m.into_pyarray(py).reshape([n, h, w, c])
 }
 
 fn frame_joint_dict<'py>(py: Python<'py>, j: &FrameJoint) -> PyResult<Bound<'py, PyDict>> {
@@ -397,10 +394,17 @@ fn decision_dict<'py>(py: Python<'py>, r: &CemResult) -> PyResult<Bound<'py, PyD
     Ok(d)
 }
 
+// numpy's ndarray is another version than the workspace's: these copy.
 fn to_array3(a: &PyReadonlyArray3<'_, f32>) -> PyResult<ndarray::Array3<f32>> {
     let s = a.shape();
     let v: Vec<f32> = a.as_array().iter().copied().collect();
     ndarray::Array3::from_shape_vec((s[0], s[1], s[2]), v).map_err(runtime_err)
+}
+
+fn to_array4(a: &PyReadonlyArray4<'_, f32>) -> PyResult<ndarray::Array4<f32>> {
+    let s = a.shape();
+    let v: Vec<f32> = a.as_array().iter().copied().collect();
+    ndarray::Array4::from_shape_vec((s[0], s[1], s[2], s[3]), v).map_err(runtime_err)
 }
 
 fn slice3(a: &PyReadonlyArray4<'_, f32>, i: usize) -> ndarray::Array3<f32> {
