@@ -12,7 +12,8 @@
 # PyTorch and the umpnet bindings on PYTHONPATH (crates/py/python, with the
 # extension built at home: it is abi3, so any Python >= 3.9 loads it). Set
 # UMPNET_GIT_COMMIT to the commit sent: the copy there may hold a stale .git.
-# TRAIN_ARGS adds flags to the policy run (e.g. TRAIN_ARGS="--mirror 0.25").
+# TRAIN_ARGS adds flags to the policy run (e.g. TRAIN_ARGS="--mirror 0.25"),
+# JOINT_ARGS to the JointNet's (e.g. JOINT_ARGS="--mirror 0.5").
 #
 # The lent machine takes the working tree and carried paths up to 64 MiB:
 # carry the extension (crates/py/python/umpnet/_umpnet.abi3.so, 11 MB after
@@ -35,7 +36,7 @@ EOF
 
 python3 -m umpnet_train.joint_net --out "$out/joint" --device auto --workers 8 \
   --frames "${FRAMES:-24000}" --steps 12000 --batch 48 --widths 24,48,96,192 --time-limit "$seconds" \
-  >"$out/joint.log" 2>&1 &
+  ${JOINT_ARGS:-} >"$out/joint.log" 2>&1 &
 joint=$!
 python3 -m umpnet_train.train --preset gpu-medium --dense-labels 16 --renderer cpu --device auto \
   --position-from "$root/models/checkpoints/umpnet-small/checkpoint.pt" \

@@ -128,6 +128,42 @@ def test_color_jitter_changes_colours_alone_and_keeps_them_in_range():
     assert 0 < int(grey.sum()) < 8, "some images grey, not all"
 
 
+def test_a_mirrored_frame_carries_the_labels_of_the_mirrored_scene():
+    """`--mirror` relabels a frame without the simulator: its labels must be
+    the ones the simulator's own fields give once mirrored (points and flow
+    with x negated, columns reversed), for hinges and slides alike."""
+    rng = np.random.default_rng(0)
+    frames, fits = [], []
+    for category, seed in (("Refrigerator", 2), ("StorageFurniture", 3), ("Window", 5)):
+        env = umpnet.Env(category, seed=seed, split="train", copy=True, resolution=(48, 64))
+        image, labels = joint_net.frame(env, rng, 0)
+        fields = env.articulation_fields()
+        image_m = umpnet._umpnet.mirrored_observations(image[None].astype(np.float32))[0]
+        fields_m = {k: fields[k][:, ::-1].copy() for k in ("joint", "speed", "flow")}
+        fields_m["flow"][..., 0] *= -1
+        frames.append((image, labels))
+        fits.append((image_m, joint_net.joint_labels(image_m, fields_m)))
+    batch = {k: torch.from_numpy(np.stack([f[1][k] for f in frames])) for k in frames[0][1]}
+    batch["image"] = torch.from_numpy(np.stack([f[0] for f in frames]).astype(np.float32))
+    before = {k: v.clone() for k, v in batch.items()}
+    joint_net.mirror_frames(batch, np.array([0, 2]))
+    assert all(torch.equal(batch[k][1], before[k][1]) for k in batch), "a frame not chosen is kept"
+    kinds = set()
+    for i in (0, 2):
+        image_m, expected = fits[i]
+        np.testing.assert_array_equal(batch["image"][i].numpy(), image_m)
+        for k in ("movable", "kind"):
+            np.testing.assert_array_equal(batch[k][i].numpy(), expected[k])
+        np.testing.assert_allclose(batch["flow"][i].numpy(), expected["flow"], atol=1e-5)
+        np.testing.assert_allclose(batch["to_axis"][i].numpy(), expected["to_axis"], atol=1e-4)
+        on = expected["kind"] >= 0
+        kinds |= set(np.unique(expected["kind"][on]).tolist())
+        # An axis is a line: the fit may give either sign.
+        cos = np.sum(batch["axis"][i].numpy()[on] * expected["axis"][on], axis=-1)
+        assert np.abs(cos).min() > 0.999
+    assert kinds == {0, 1}, "a hinge and a slide are mirrored"
+
+
 def test_export_refuses_a_package_of_another_size(tmp_path, fixture_package):
     run = tmp_path / "run"
     run.mkdir()
