@@ -179,3 +179,20 @@ def test_export_refuses_a_package_of_another_size(tmp_path, fixture_package):
     else:
         raise AssertionError("exported a 24x32 JointNet into a 48x64 package")
     assert "joint" not in (package / "model.json").read_text().split('"files"')[1].split("}")[0]
+
+
+def test_the_command_refuses_bad_flags_by_name(tmp_path, capsys):
+    for flags, named in (
+        (["--mirror", "1.5"], "--mirror 1.5"),
+        (["--widths", "16,x"], "--widths 16,x"),
+        (["--frames", "2", "--batch", "4"], "--frames"),
+        (["--device", "tpu"], "--device tpu"),
+    ):
+        try:
+            joint_net.main(["--out", str(tmp_path / "run"), *flags])
+        except SystemExit as e:
+            assert e.code == 2
+        else:
+            raise AssertionError(f"{flags} accepted")
+        assert named in capsys.readouterr().err
+    assert not (tmp_path / "run").exists(), "nothing is trained or written"

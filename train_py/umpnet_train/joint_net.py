@@ -1,7 +1,7 @@
 """JointNet (beyond the paper): a joint's type, axis and origin from one RGB-D
 frame, trained on the simulator's dense articulation labels alone.
 
-    python -m umpnet_train.joint_net --out ../runs/joint [--steps 3000] [--resume]
+    python -m umpnet_train.joint_net --out ../runs/joint [--steps 3000] [--mirror 0.5] [--resume]
     python -m umpnet_train.joint_net --out ../runs/joint --export ../models/umpnet-small
 
 A U-Net reads the observation (N x H x W x 10, as the position network does)
