@@ -236,21 +236,23 @@ def joint_losses(out: torch.Tensor, batch: dict[str, torch.Tensor]) -> dict[str,
 
 def mirror_frames(batch: dict[str, torch.Tensor], which: np.ndarray) -> None:
     """In place: the frames at `which` of a training batch mirrored
-    left-right, the observation by the runtime's rule and every per-pixel
-    label with its columns reversed and, for world vectors, x negated."""
+    left-right by `umpnet_train.mirror`'s rules, the ones `train --mirror`
+    uses: the observation by the runtime's mirror, the part labels with
+    their columns reversed, and the flow and axis fields with x negated too.
+    The chosen frames make one round trip to the CPU."""
     from . import mirror
 
     if not len(which):
         return
     idx = torch.from_numpy(which).to(batch["image"].device)
-    image = batch["image"][idx]
-    batch["image"][idx] = torch.from_numpy(mirror.images(image.cpu().numpy())).to(image.device)
-    for k in ("movable", "kind"):
-        batch[k][idx] = batch[k][idx].flip(2)
-    for k in ("flow", "axis", "to_axis"):
-        v = batch[k][idx].flip(2)
-        v[..., 0] = -v[..., 0]
-        batch[k][idx] = v
+    for keys, rule in (
+        (("image",), mirror.images),
+        (("movable", "kind"), mirror.columns),
+        (("flow", "axis", "to_axis"), mirror.fields),
+    ):
+        for k in keys:
+            part = batch[k][idx]
+            batch[k][idx] = torch.from_numpy(rule(part.cpu().numpy())).to(part.device)
 
 
 def jitter_colors(image: torch.Tensor, rng: np.random.Generator) -> None:

@@ -10,8 +10,10 @@ point and normal (the runtime's own mirror, the one `--mirror-average`
 uses), move directions, and per-pixel flow fields. The grasp pixel's
 column is reflected. Labels are kept.
 
-`train --mirror P` and `candidates finetune --mirror P` show that share of
-each batch's states mirrored.
+`train --mirror P`, `candidates finetune --mirror P` and `joint_net
+--mirror P` show that share of each batch's states mirrored. The JointNet's
+labels are mirrored by the same rules: part labels have their columns
+reversed (`columns`), its flow and axis fields are fields (`fields`).
 """
 
 from __future__ import annotations
@@ -52,9 +54,14 @@ def vectors(batch: np.ndarray) -> np.ndarray:
     return out
 
 
+def columns(batch: np.ndarray) -> np.ndarray:
+    """Per-pixel labels (N x H x W x ...) with their columns reversed."""
+    return np.ascontiguousarray(batch[:, :, ::-1])
+
+
 def fields(batch: np.ndarray) -> np.ndarray:
     """Per-pixel world vectors (N x H x W x 3), columns reversed, x negated."""
-    return vectors(batch[:, :, ::-1])
+    return vectors(columns(batch))
 
 
 def states(which: np.ndarray, images_: list, pixels_: list, vectors_: list, fields_: list) -> tuple:
