@@ -135,7 +135,7 @@ PYTEST = PYTHONPATH=tests/plugins PYTEST_ADDOPTS="-p skipguard" $(PY) -m pytest 
 
 test-python: build py fixture
 	# One process per suite: native libraries loaded by one suite cannot affect another.
-	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_e2e.py tests/test_skipguard.py tests/test_mutant_records.py tests/test_episode_outcomes.py
+	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_episodes.py tests/test_cli_eval.py tests/test_cli_infer.py tests/test_cli_errors.py tests/test_skipguard.py tests/test_mutant_records.py tests/test_episode_outcomes.py
 	# The bad-input corpus, one file per kind, each case under a memory cap and a deadline.
 	UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_bad_inputs.py
 	# Ray on a local cluster: sharded evaluation, retries.
@@ -182,7 +182,7 @@ test: lint test-rust test-python mutants-ci test-rerun
 test-rerun: lint-rerun fixture
 	cargo test --release $(RERUN)
 	cargo build --release $(RERUN)
-	UMPNET_REQUIRE_RERUN=1 UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_e2e.py -k rrd
+	UMPNET_REQUIRE_RERUN=1 UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_episodes.py -k rrd
 
 clean:
 	cargo clean
