@@ -28,9 +28,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from umpnet_cli import ROOT, UMPNET
 
-ROOT = Path(__file__).resolve().parents[1]
-UMPNET = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
 CORPUS = sorted((ROOT / "tests" / "bad_inputs").glob("*.json"))
 # Each case's process: at most this much address space and this long. A run
 # that would have taken gigabytes fails here instead of exhausting the machine.

@@ -10,8 +10,8 @@ import subprocess
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-UMPNET = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
+from umpnet_cli import UMPNET
+
 REPORT = ("episodes.jsonl", "results.csv", "results.md", "results.tex", "table.txt", "curve.png", "curve.svg")
 
 
