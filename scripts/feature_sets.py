@@ -23,6 +23,11 @@ GRAPHS = {
     "cargo build (the umpnet binary)": ["-p", "umpnet-cli", "-e", "normal,build"],
     "maturin (the Python extension)": ["-p", "umpnet-py", "-e", "normal,build", "-F", "pyo3/extension-module"],
     "make test-rerun (the CLI with Rerun)": ["-p", "umpnet-cli", "-e", "normal,build,dev", "-F", "umpnet-cli/rerun"],
+    # `make mutants-ci` tests umpnet-eval alone (scripts/mutants.py). Its
+    # tests of umpnet-policy's lib build that crate's own graph (criterion's
+    # clap, no rapier), which only an umpnet-policy dependency on the hack
+    # could unify; that baseline costs about a minute.
+    "make mutants-ci (umpnet-eval's tests)": ["-p", "umpnet-eval", "-e", "normal,build,dev"],
 }
 
 
