@@ -12,8 +12,9 @@ column is reflected. Labels are kept.
 
 `train --mirror P`, `candidates finetune --mirror P` and `joint_net
 --mirror P` show that share of each batch's states mirrored. The JointNet's
-labels are mirrored by the same rules: part labels have their columns
-reversed (`columns`), its flow and axis fields are fields (`fields`).
+targets are per-pixel images, so unlike a move's outcome they are mirrored
+too: part labels with their columns reversed (`columns`), flow and axis
+fields like any field (`fields`).
 """
 
 from __future__ import annotations
