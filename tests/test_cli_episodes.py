@@ -1,6 +1,7 @@
 """End-to-end tests of the `umpnet` binary's episodes: `explore`, `goal` and
 `render` as a researcher types them, with the policies' switches, pictures
-and recordings."""
+and recordings, on generated objects (`objects generate`) and object files
+placed by `--scale` and `--pose`."""
 
 import itertools
 import json
