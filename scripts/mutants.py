@@ -33,7 +33,10 @@ REWARDS = "crates/eval/src/rewards.rs"
 TRAIN = "train_py/umpnet_train/train.py"
 COLLECT = "train_py/umpnet_train/collect.py"
 PYTEST = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:warnings"]
-TRAINING = [*PYTEST, "train_py/tests/test_runtime_semantics.py", "train_py/tests/test_train.py"]
+# The files that hold the training mutants' tests (the losses' class order, the
+# dense weights, collection's arrows of time, the warm-up's schedule); the quick
+# files first, since -x ends a mutant's run at its first failure.
+TRAINING = [*PYTEST, *(f"train_py/tests/test_{name}.py" for name in ("runtime_semantics", "config", "learner"))]
 CARGO = ["cargo", "test", "--release", "-q"]
 REWARD_TESTS = [*CARGO, "-p", "umpnet-eval", "--lib", "rewards"]
 

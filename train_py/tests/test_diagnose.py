@@ -1,11 +1,12 @@
 """`umpnet_train.diagnose`: the heads are scored only where no filter rewrote
 them, the policy-as-run mode feeds each policy its episode (a move that moved
-nothing is not tried again), and the figures are those of the moves made."""
+nothing is not tried again), the figures are those of the moves made, its
+measures are right on known values, and `train --eval-every` logs them."""
 
 import numpy as np
 import pytest
 import umpnet
-from umpnet_train import diagnose, fixture
+from umpnet_train import diagnose, fixture, train
 from umpnet_train.export import export_model
 
 
@@ -111,3 +112,33 @@ def test_categories_limit_the_run_and_a_split_without_them_is_left_out(package, 
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert "--categories" in err and "'Dor'" in err and "Laptop" in err
+
+
+def test_diagnostic_measures_on_known_values():
+    from umpnet_train import diagnose
+
+    assert diagnose.spearman(np.array([1.0, 2, 3]), np.array([10.0, 20, 30])) == pytest.approx(1.0)
+    assert diagnose.spearman(np.array([1.0, 2, 3]), np.array([3.0, 2, 1])) == pytest.approx(-1.0)
+    assert diagnose.spearman(np.array([1.0, 2, 3]), np.array([5.0, 5, 5])) is None
+    # Toward the reference is -1, away +1, not moved 0.
+    aot = diagnose.true_aot(0.5, np.array([0.3, 0.8, 0.5]), 0.0, np.array([True, True, False]))
+    np.testing.assert_array_equal(aot, [-1, 1, 0])
+    # Progress: away from the start when exploring, toward the goal otherwise.
+    np.testing.assert_allclose(diagnose.progress(0.5, np.array([0.8, 0.2]), 0.0, 1.0, "exploration"), [0.3, -0.3])
+    np.testing.assert_allclose(diagnose.progress(0.5, np.array([0.8, 0.2]), 0.0, 1.0, "goal"), [0.3, -0.3])
+    np.testing.assert_allclose(diagnose.progress(0.5, np.array([0.8, 0.2]), 0.0, 0.0, "goal"), [-0.3, 0.3])
+
+
+def test_periodic_evaluation_logs_the_diagnostics(tmp_path):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    out = tmp_path / "run"
+    assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "1", "--eval-every", "1"]) == 0
+    tags = EventAccumulator(str(out / "tb")).Reload().Tags()["scalars"]
+    for tag in (
+        "diagnose/test/goal/aot_accuracy",
+        "diagnose/train/exploration/position_validity",
+        "diagnose/test/goal_success/learned/oracle",
+    ):
+        assert tag in tags, sorted(tags)
+    assert any(t.startswith("eval/goal/") for t in tags), sorted(tags)
