@@ -179,9 +179,13 @@ test: lint test-rust test-python mutants-ci test-rerun
 # The `rerun` feature for real: lint, the readback test, and recordings made by
 # the CLI. The Rerun SDK is ~400 more crates; crates/workspace-hack lets them
 # share the simulator stack already built by test-rust.
+# The Rerun SDK's own crates build at opt-level 0 here (scripts/rerun_profile.py
+# says why); users' `--features rerun` builds keep the release profile.
+RERUN_PROFILE := target/rerun-profile.toml
 test-rerun: lint-rerun fixture
-	cargo test --release $(RERUN)
-	cargo build --release $(RERUN)
+	$(PY) scripts/rerun_profile.py $(RERUN_PROFILE)
+	cargo test --release $(RERUN) --config $(RERUN_PROFILE)
+	cargo build --release $(RERUN) --config $(RERUN_PROFILE)
 	UMPNET_REQUIRE_RERUN=1 UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_episodes.py -k rrd
 
 clean:
