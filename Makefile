@@ -115,8 +115,10 @@ check:
 	cargo test --release --workspace --lib --bins $(CARGO_FEATURES)
 
 # The library crates' reference: every public item documented
-# (missing_docs), every intra-doc link resolved.
-DOC = RUSTDOCFLAGS="-D warnings" cargo doc --no-deps -p umpnet-sim -p umpnet-policy -p umpnet-eval
+# (missing_docs), every intra-doc link resolved. In the release profile, so
+# rustdoc reads the dependencies' metadata that clippy --release just made
+# instead of checking the whole stack again in the dev profile.
+DOC = RUSTDOCFLAGS="-D warnings" cargo doc --release --no-deps -p umpnet-sim -p umpnet-policy -p umpnet-eval
 
 lint: install
 	cargo fmt --all --check
