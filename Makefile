@@ -179,7 +179,7 @@ mutants: build py fixture
 test: lint test-rust test-python mutants-ci test-rerun
 
 # The `rerun` feature for real: lint, the readback test, and recordings made by
-# the CLI. The Rerun SDK is ~400 more crates; crates/workspace-hack lets them
+# the CLI. The Rerun SDK is ~300 more crates; crates/workspace-hack lets them
 # share the simulator stack already built by test-rust.
 # The Rerun SDK's own crates build at opt-level 0 here (scripts/rerun_profile.py
 # says why); users' `--features rerun` builds keep the release profile.

@@ -17,12 +17,14 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
+# `make test-rerun`'s graph; scripts/rerun_profile.py sets it against the others.
+RERUN = ["-p", "umpnet-cli", "-e", "normal,build,dev", "-F", "umpnet-cli/rerun"]
 # (what builds it, cargo tree arguments)
 GRAPHS = {
     "cargo test (default members)": ["-e", "normal,build,dev"],
     "cargo build (the umpnet binary)": ["-p", "umpnet-cli", "-e", "normal,build"],
     "maturin (the Python extension)": ["-p", "umpnet-py", "-e", "normal,build", "-F", "pyo3/extension-module"],
-    "make test-rerun (the CLI with Rerun)": ["-p", "umpnet-cli", "-e", "normal,build,dev", "-F", "umpnet-cli/rerun"],
+    "make test-rerun (the CLI with Rerun)": RERUN,
     # `make mutants-ci` tests umpnet-eval alone (scripts/mutants.py). Its
     # tests of umpnet-policy's lib build that crate's own graph (criterion's
     # clap, no rapier), which only an umpnet-policy dependency on the hack

@@ -17,37 +17,15 @@ its own copy.
 
 from __future__ import annotations
 
-import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-
-# The release builds of `make test` other than the Rerun one (scripts/feature_sets.py).
-SHARED = [
-    ["-e", "normal,build,dev"],
-    ["-p", "umpnet-cli", "-e", "normal,build"],
-    ["-p", "umpnet-py", "-e", "normal,build", "-F", "pyo3/extension-module"],
-]
-RERUN = ["-p", "umpnet-cli", "-e", "normal,build,dev", "-F", "umpnet-cli/rerun"]
+from feature_sets import GRAPHS, RERUN, features
 
 
-def packages(args: list[str]) -> set[tuple[str, str]]:
-    """(name, version) of every registry crate in one build graph."""
-    cmd = ["cargo", "tree", "--prefix", "none", "-f", "{p}", *args]
-    out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=True).stdout
-    found = set()
-    for line in filter(None, out.splitlines()):  # a blank line between the workspace's roots
-        # "syn v2.0.1 (proc-macro)", "umpnet-sim v0.1.0 (/path)", "rand v0.9.1 (*)"
-        name, version, *rest = line.split()
-        if not any(r.startswith("(/") for r in rest):
-            found.add((name, version.removeprefix("v")))
-    return found
-
-
-def config(only_rerun: set[tuple[str, str]]) -> str:
+def config(only_rerun: set[str]) -> str:
     lines = ["# Written by scripts/rerun_profile.py for `make test-rerun`; not for users' builds.\n"]
-    for name, version in sorted(only_rerun):
+    for name, version in sorted(p.split(" v", 1) for p in only_rerun):
         lines.append(f'[profile.release.package."{name}@{version}"]\nopt-level = 0\n')
     return "\n".join(lines)
 
@@ -56,8 +34,10 @@ def main(argv: list[str]) -> int:
     if len(argv) != 1:
         print("usage: rerun_profile.py OUT.toml", file=sys.stderr)
         return 2
-    shared = set().union(*(packages(args) for args in SHARED))
-    only_rerun = packages(RERUN) - shared
+    # The workspace's own crates are in every graph, so only registry crates remain.
+    shared = set().union(*(features(args) for args in GRAPHS.values() if args is not RERUN))
+    # feature_sets' keys: "name vVERSION"
+    only_rerun = set(features(RERUN)) - shared
     out = Path(argv[0])
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(config(only_rerun))

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+import torch
 import umpnet
 from umpnet_train import collect, train
 from umpnet_train.config import config_from_checkpoint
@@ -24,7 +25,6 @@ def _fields_data(seed: int, resets: int):
 
 
 def test_the_auxiliary_flow_head_learns_the_articulation_flow_of_unseen_scenes():
-    import torch
     from umpnet_train.models import PositionNet
 
     collect.set_device(torch.device("cpu"))
@@ -57,8 +57,6 @@ def test_the_auxiliary_flow_head_learns_the_articulation_flow_of_unseen_scenes()
 
 
 def test_training_with_auxiliary_fields_runs_and_exports_the_same_package_contract(tmp_path):
-    import torch
-
     out, pkg = tmp_path / "run", tmp_path / "package"
     args = ["--preset", "smoke", "--epochs", "2", "--aux-fields", "1", "--out", str(out), "--export", str(pkg)]
     assert train.main(args) == 0
@@ -79,7 +77,6 @@ def test_scaled_flow_training_and_the_single_frame_joint_fit(tmp_path):
     squared error, not a cosine), and frame_joint's rigid fit recovers a
     hinge's axis and origin, or a slide's axis, from such flow; from unit flow
     on a flat part no hinge can be told, and it says prismatic."""
-    import torch
     from umpnet_train import frame_joint
 
     # The fit on exact flows: a hinge along z through (0.3, 0.1, 0), a slide along x.

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 import umpnet
 from umpnet_train import collect, train
 from umpnet_train.config import make_config
@@ -95,7 +96,6 @@ def test_the_paper_direction_net_is_the_papers_and_exports_the_same_contract(tmp
     MLP of 128 per branch and 1024-1024-1024 decoders; whole-image features, so
     the grasp pixel changes nothing and the AoT branch alone reads the
     reference. A smoke run of it exports a package the Rust runtime scores."""
-    import torch
     from torch import nn
     from umpnet_train.models import UMPNet
 

@@ -115,8 +115,6 @@ def test_categories_limit_the_run_and_a_split_without_them_is_left_out(package, 
 
 
 def test_diagnostic_measures_on_known_values():
-    from umpnet_train import diagnose
-
     assert diagnose.spearman(np.array([1.0, 2, 3]), np.array([10.0, 20, 30])) == pytest.approx(1.0)
     assert diagnose.spearman(np.array([1.0, 2, 3]), np.array([3.0, 2, 1])) == pytest.approx(-1.0)
     assert diagnose.spearman(np.array([1.0, 2, 3]), np.array([5.0, 5, 5])) is None

@@ -7,8 +7,9 @@ import json
 
 import numpy as np
 import pytest
+import torch
 import umpnet
-from umpnet_train import collect, train
+from umpnet_train import collect, diagnose, train
 from umpnet_train.config import make_config
 from umpnet_train.replay import Replay
 
@@ -34,7 +35,6 @@ def test_replay_balances_classes_and_drops_stale_references():
 
 
 def test_context_network_sees_the_whole_image_and_the_difference():
-    import torch
     from umpnet_train.models import Difference, UMPNet
 
     cur = torch.zeros(1, 96, 128, 10).permute(0, 3, 1, 2)
@@ -60,8 +60,6 @@ def test_context_network_sees_the_whole_image_and_the_difference():
 
 
 def test_dense_batches_weigh_each_aot_class_equally():
-    import torch
-
     w = train.class_weights(torch.tensor([0, 0, 0, 2]), 3)
     np.testing.assert_allclose(w.numpy(), [1 / 6, 1 / 6, 1 / 6, 1 / 2])
     ranked = collect.unit(np.random.default_rng(0).normal(size=(2, 10, 3))).astype(np.float32)
@@ -73,8 +71,6 @@ def test_dense_batches_weigh_each_aot_class_equally():
 
 def test_dense_label_training_and_diagnostics_on_a_tiny_package(tmp_path, capsys):
     import re
-
-    from umpnet_train import diagnose
 
     out, pkg = tmp_path / "run", tmp_path / "package"
     args = ["--preset", "smoke", "--out", str(out), "--epochs", "2", "--dense-labels", "6", "--export", str(pkg)]
@@ -142,8 +138,6 @@ def _dense_data(cfg, seed: int, sequences: int):
 def _held_out_scores(model, replay, dense) -> tuple[float, float]:
     """(the training objective 100 MSE + CE, class-balanced AoT accuracy) over
     every held-out dense label."""
-    import torch
-
     n = len(dense)
     k = dense.vectors.shape[1]
     model.eval()
@@ -172,7 +166,6 @@ def test_a_short_seeded_run_of_the_real_update_learns_what_held_out_states_show(
     network must lower the objective and raise the AoT accuracy on states of
     other scenes. A loop that does not update, or that updates the wrong way,
     leaves both where they started."""
-    import torch
     from umpnet_train.models import UMPNet
 
     collect.set_device(torch.device("cpu"))
@@ -203,7 +196,6 @@ def test_mirrored_batches_are_the_mirrored_scenes_the_learner_would_see():
     outside [0, 1] is refused by name."""
     import copy
 
-    import torch
     from umpnet_train.models import UMPNet
 
     collect.set_device(torch.device("cpu"))
@@ -245,7 +237,6 @@ def test_mirrored_batches_are_the_mirrored_scenes_the_learner_would_see():
 def test_learner_modes_update_the_same_fp32_weights():
     """Every learner mode trains the fp32 model that checkpoints and export
     read; an unknown mode is an error naming the choices."""
-    import torch
     from umpnet_train.models import UMPNet
 
     collect.set_device(torch.device("cpu"))

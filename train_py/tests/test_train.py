@@ -92,8 +92,6 @@ def test_replay_buffer_round_trips_through_resume(tmp_path, capsys):
 
 
 def test_checkpoints_from_before_the_context_network_still_export(tmp_path, capsys):
-    import torch
-
     out = tmp_path / "run"
     assert train.main(["--preset", "smoke", "--out", str(out), "--epochs", "1", "--direction-net", "plain"]) == 0
     ck = torch.load(out / "checkpoint.pt", weights_only=False)
@@ -109,8 +107,6 @@ def test_checkpoints_from_before_the_context_network_still_export(tmp_path, caps
 
 
 def test_position_from_another_run_stays_fixed_while_the_direction_nets_train(tmp_path, capsys):
-    import torch
-
     donor, run = tmp_path / "donor", tmp_path / "run"
     assert train.main(["--preset", "smoke", "--out", str(donor), "--epochs", "2", "--seed", "1"]) == 0
     assert train.main(["--preset", "smoke", "--out", str(run), "--epochs", "2"]) == 0
