@@ -102,9 +102,13 @@ train-baselines: build py
 	bash scripts/train_baselines.sh
 
 # The `rerun` feature's code, type-checked and linted without building the SDK.
+# It reads test-rerun's profile (below): the SDK's build scripts (ring's, zstd's
+# and lz4's C among them) see the profile, so with one profile they run once.
 RERUN := -p umpnet-cli --features umpnet-cli/rerun
+RERUN_PROFILE := target/rerun-profile.toml
 lint-rerun: install
-	cargo clippy --release $(RERUN) --all-targets -- -D warnings
+	$(PY) scripts/rerun_profile.py $(RERUN_PROFILE)
+	cargo clippy --release $(RERUN) --all-targets --config $(RERUN_PROFILE) -- -D warnings
 
 # The fast inner loop: rustfmt, clippy and the Rust unit tests; no venv, no
 # PyTorch, no apt (a Rust toolchain is all it needs).
@@ -183,9 +187,7 @@ test: lint test-rust test-python mutants-ci test-rerun
 # share the simulator stack already built by test-rust.
 # The Rerun SDK's own crates build at opt-level 0 here (scripts/rerun_profile.py
 # says why); users' `--features rerun` builds keep the release profile.
-RERUN_PROFILE := target/rerun-profile.toml
 test-rerun: lint-rerun fixture
-	$(PY) scripts/rerun_profile.py $(RERUN_PROFILE)
 	cargo test --release $(RERUN) --config $(RERUN_PROFILE)
 	cargo build --release $(RERUN) --config $(RERUN_PROFILE)
 	UMPNET_REQUIRE_RERUN=1 UMPNET_BIN=$(UMPNET) $(PYTEST) tests/test_cli_episodes.py -k rrd

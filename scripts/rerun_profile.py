@@ -2,13 +2,16 @@
 the CLI's `rerun` feature brings in (the Rerun SDK's ~300) at opt-level 0.
 
     .venv/bin/python scripts/rerun_profile.py target/rerun-profile.toml
+    cargo clippy --release -p umpnet-cli --features umpnet-cli/rerun --all-targets --config target/rerun-profile.toml
     cargo test --release -p umpnet-cli --features umpnet-cli/rerun --config target/rerun-profile.toml
 
 Why: the test only checks that recordings are written and read back, yet
 optimising the SDK (arrow, re_types, the gRPC stack) was most of CI's
 Rerun step. The crates the other builds share keep the release profile, so
 nothing already built is built again. Users' `--features rerun` builds are
-untouched: this file is only passed by that make target.
+untouched: this file is only passed by that target and `make lint-rerun`,
+whose clippy reads it so that the SDK's build scripts, which are handed
+the profile, run once for both.
 
 Crates are named with their version (`name@version`), so a crate the Rerun
 SDK uses at another version than the rest of the workspace changes only
