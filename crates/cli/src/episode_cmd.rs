@@ -3,7 +3,6 @@ use anyhow::{Context, Result};
 use std::path::PathBuf;
 use umpnet_eval::Policy;
 use umpnet_eval::episode::{EpisodeConfig, HookFrame, run_episode};
-use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::render::{RendererKind, create_renderer};
 use umpnet_sim::scene::Task;
@@ -35,22 +34,8 @@ pub struct EpisodeArgs {
     /// random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
     #[arg(long, default_value = "oracle")]
     pub policy: String,
-    /// A learned policy's direction filter instead of its package's: none,
-    /// normal90 (within 90 degrees of the surface normal), prev90 (within 90
-    /// degrees of the previous action, the paper's +HP; exploration only),
-    /// joint45 (along the JointNet's joint), goal45 (toward where the goal
-    /// frame shows the part; goal only) or onward45 (onward where the
-    /// gripper went; exploration only).
-    #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
-    pub direction_filter: Option<DirectionFilter>,
-    /// A learned policy's grasp rule instead of its package's (model.json
-    /// `grasp`): affordance (the paper: the PositionNet's best pixel),
-    /// affordance_times_movable (weighted by the JointNet's movable mask) or
-    /// affordance_times_movable_lever (and by the lever arm about a hinge).
-    #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
-    pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
-    pub scoring: crate::policies::ScoringArgs,
+    pub learned: crate::policies::LearnedArgs,
     /// Model package for --policy umpnet (default: models/umpnet-gpu-medium).
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -83,9 +68,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
         a.model.as_deref(),
         1,
         task,
-        a.direction_filter,
-        a.grasp_rule,
-        a.scoring.resolve(),
+        a.learned.resolve(),
     )?;
     let mut policy: Box<dyn Policy> = match resolved.factories.first() {
         Some((_, make)) => make()?,

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use umpnet_eval::benchmark::PolicyFactory;
 use umpnet_eval::learned::LearnedPolicy;
+use umpnet_policy::UmpnetPolicy;
 use umpnet_policy::cem::Sampler;
 use umpnet_policy::policy::{DirectionFilter, GraspRule};
 use umpnet_sim::scene::Task;
@@ -62,10 +63,26 @@ pub struct Resolved {
     pub packages: Vec<(String, PathBuf)>,
 }
 
-/// How learned policies draw candidate directions (the sampler ablations of
-/// the paper's appendix) and score them (`--mirror-average`).
+/// What replaces every learned package's own choices: its direction filter
+/// and grasp rule, how it draws candidate directions (the sampler ablations
+/// of the paper's appendix) and how it scores them (`--mirror-average`).
+/// One set of flags for `episode`, `eval`, `explore`, `goal` and `infer`.
 #[derive(clap::Args, Clone, Debug, Default)]
-pub struct ScoringArgs {
+pub struct LearnedArgs {
+    /// A learned policy's direction filter instead of its package's: none,
+    /// normal90 (within 90 degrees of the surface normal), prev90 (within 90
+    /// degrees of the previous action, the paper's +HP; exploration only),
+    /// joint45 (along the JointNet's joint), goal45 (toward where the goal
+    /// frame shows the part; goal only) or onward45 (onward where the
+    /// gripper went; exploration only).
+    #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
+    pub direction_filter: Option<DirectionFilter>,
+    /// A learned policy's grasp rule instead of its package's (model.json
+    /// `grasp`): affordance (the paper: the PositionNet's best pixel),
+    /// affordance_times_movable (weighted by the JointNet's movable mask) or
+    /// affordance_times_movable_lever (and by the lever arm about a hinge).
+    #[arg(long, value_parser = crate::choice::<GraspRule>(crate::GRASP_RULES))]
+    pub grasp_rule: Option<GraspRule>,
     /// How a learned policy draws candidate directions: cem (the paper: two
     /// rounds, the second resampled around the best of the first) or uniform
     /// (one round of twice --cem-samples, the same number of evaluations)
@@ -82,19 +99,23 @@ pub struct ScoringArgs {
     pub mirror_average: bool,
 }
 
-/// How learned policies draw and score candidate directions.
+/// The choices [`LearnedArgs`] asked for; None keeps the package's own.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Scoring {
+pub struct Overrides {
+    pub filter: Option<DirectionFilter>,
+    pub grasp: Option<GraspRule>,
     /// The sampler asked for, or None for the package's default (CEM, 64).
     pub sampler: Option<Sampler>,
     /// `--mirror-average`.
     pub mirror_average: bool,
 }
 
-impl ScoringArgs {
-    /// The sampler and the scoring asked for.
-    pub fn resolve(&self) -> Scoring {
-        Scoring {
+impl LearnedArgs {
+    /// The choices asked for.
+    pub fn resolve(&self) -> Overrides {
+        Overrides {
+            filter: self.direction_filter,
+            grasp: self.grasp_rule,
             sampler: self.sampler(),
             mirror_average: self.mirror_average,
         }
@@ -115,37 +136,32 @@ impl ScoringArgs {
     }
 }
 
-/// `policy` under the options that replace every learned package's own.
-fn configured(
-    mut policy: LearnedPolicy,
-    filter: Option<DirectionFilter>,
-    grasp: Option<GraspRule>,
-    scoring: Scoring,
-) -> umpnet_eval::Result<LearnedPolicy> {
-    if let Some(f) = filter {
-        policy = policy.with_direction_filter(f);
+impl Overrides {
+    /// `policy` with these choices in place of its package's.
+    pub fn apply(self, mut policy: UmpnetPolicy) -> umpnet_policy::Result<UmpnetPolicy> {
+        if let Some(f) = self.filter {
+            policy = policy.with_direction_filter(f);
+        }
+        if let Some(s) = self.sampler {
+            policy = policy.with_sampler(s);
+        }
+        if let Some(g) = self.grasp {
+            policy = policy.with_grasp(g)?;
+        }
+        Ok(policy.with_mirror_average(self.mirror_average))
     }
-    if let Some(s) = scoring.sampler {
-        policy = policy.with_sampler(s);
-    }
-    if let Some(g) = grasp {
-        policy = policy.with_grasp(g)?;
-    }
-    Ok(policy.with_mirror_average(scoring.mirror_average))
 }
 
 /// Packages are checked against `task`: an Inverse package has no exploration
-/// behaviour. `filter` and `grasp` replace every learned package's.
+/// behaviour. `overrides` replace every learned package's own choices.
 pub fn resolve(
     specs: &[String],
     model: Option<&Path>,
     sessions: usize,
     task: Task,
-    filter: Option<DirectionFilter>,
-    grasp: Option<GraspRule>,
-    scoring: Scoring,
+    overrides: Overrides,
 ) -> Result<Resolved> {
-    if filter == Some(DirectionFilter::Prev90) && task == Task::Goal {
+    if overrides.filter == Some(DirectionFilter::Prev90) && task == Task::Goal {
         return Err(usage(
             "--direction-filter prev90 serves exploration only (the paper's +HP baselines): \
              in the goal task the way to the goal may lie behind the last move",
@@ -212,7 +228,7 @@ pub fn resolve(
                         dir.display()
                     )));
                 }
-                if let Some(Err(why)) = grasp.map(|g| g.check_joint(pkg.has_joint())) {
+                if let Some(Err(why)) = overrides.grasp.map(|g| g.check_joint(pkg.has_joint())) {
                     return Err(usage(format!(
                         "policy `{name}`: --grasp-rule: {}: {why}",
                         dir.display()
@@ -223,9 +239,9 @@ pub fn resolve(
                 packages.push((name.clone(), dir.clone()));
                 let n = name.clone();
                 let f: PolicyFactory = Arc::new(move || {
-                    let p =
-                        configured(LearnedPolicy::new(&n, pkg.clone()), filter, grasp, scoring)?;
-                    Ok(Box::new(p) as Box<dyn umpnet_eval::Policy>)
+                    let policy = overrides.apply(UmpnetPolicy::new(pkg.clone()))?;
+                    Ok(Box::new(LearnedPolicy::from_policy(&n, policy))
+                        as Box<dyn umpnet_eval::Policy>)
                 });
                 factories.push((name, f));
             }

@@ -381,9 +381,7 @@ mod tests {
             None,
             1,
             Task::Goal,
-            None,
-            None,
-            crate::policies::Scoring::default(),
+            crate::policies::Overrides::default(),
         )
         .expect("the shipped model (and ONNX Runtime) must load");
         let (_, make) = &resolved.factories[0];

@@ -10,8 +10,7 @@ use std::path::Path;
 use std::sync::Arc;
 use umpnet_policy::cem::Mode;
 use umpnet_policy::memory::EpisodeMemory;
-use umpnet_policy::policy::DirectionFilter;
-use umpnet_policy::{CameraFrame, DecisionInput, ModelPackage, UmpnetPolicy, build_observation};
+use umpnet_policy::{CameraFrame, ModelPackage, UmpnetPolicy, build_observation};
 use umpnet_sim::env::SimEnv;
 use umpnet_sim::math::Vec3;
 use umpnet_sim::render::Frame;
@@ -67,38 +66,20 @@ pub struct LearnedPolicy {
 impl LearnedPolicy {
     /// The package's policy, named `name` in tables.
     pub fn new(name: &str, package: Arc<ModelPackage>) -> Self {
+        Self::from_policy(name, UmpnetPolicy::new(package))
+    }
+
+    /// `policy` as it is configured (its direction filter, grasp rule,
+    /// sampler, mirror averaging), named `name` in tables.
+    pub fn from_policy(name: &str, policy: UmpnetPolicy) -> Self {
         Self {
             name: name.into(),
-            policy: UmpnetPolicy::new(package),
+            policy,
             rng: ChaCha8Rng::seed_from_u64(0),
             memory: EpisodeMemory::default(),
             reference: None,
             joint: None,
         }
-    }
-
-    /// The policy under another direction filter than its package's.
-    pub fn with_direction_filter(mut self, filter: DirectionFilter) -> Self {
-        self.policy = self.policy.with_direction_filter(filter);
-        self
-    }
-
-    /// The policy under another grasp rule than its package's.
-    pub fn with_grasp(mut self, grasp: umpnet_policy::policy::GraspRule) -> Result<Self> {
-        self.policy = self.policy.with_grasp(grasp)?;
-        Ok(self)
-    }
-
-    /// The policy drawing candidates with another sampler than the paper's CEM.
-    pub fn with_sampler(mut self, sampler: umpnet_policy::cem::Sampler) -> Self {
-        self.policy = self.policy.with_sampler(sampler);
-        self
-    }
-    /// Averages every candidate's scores with the mirrored scene's
-    /// ([`UmpnetPolicy::with_mirror_average`]).
-    pub fn with_mirror_average(mut self, on: bool) -> Self {
-        self.policy = self.policy.with_mirror_average(on);
-        self
     }
 
     /// Loads a package with `sessions` concurrent session sets (one per worker thread).
@@ -171,17 +152,13 @@ impl Policy for LearnedPolicy {
         } else {
             Mode::Explore
         };
-        let input = DecisionInput {
-            observation: current.view(),
-            reference: reference.view(),
+        let input = self.memory.decision_input(
+            current.view(),
+            reference.view(),
             pixel,
-            banned: self.memory.banned(),
-            previous: self.memory.previous(),
             mode,
-            joint: self.joint.as_ref(),
-            motion: self.memory.motion(),
-            long_motion: self.memory.long_motion(),
-        };
+            self.joint.as_ref(),
+        );
         let mut out = self.policy.directions(
             std::slice::from_ref(&input),
             std::slice::from_mut(&mut self.rng),

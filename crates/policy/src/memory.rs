@@ -5,8 +5,11 @@
 //! last move that carried it (for `goal45` after a stall). One rule for
 //! the benchmark's policy, `umpnet infer --session` and the Python
 //! `Policy.act`.
-use crate::policy::MOTION_MIN_M;
+use crate::axis::JointEstimate;
+use crate::cem::Mode;
+use crate::policy::{DecisionInput, MOTION_MIN_M};
 use nalgebra::Vector3;
+use ndarray::ArrayView3;
 
 /// The memory of one episode; `clear` at its start.
 #[derive(Clone, Debug, Default)]
@@ -103,6 +106,30 @@ impl EpisodeMemory {
     pub fn previous(&self) -> Option<Vector3<f32>> {
         self.previous
     }
+
+    /// The next decision's input, with what this memory holds (bans, the
+    /// previous move, the gripper's motions) filled in, so that every caller
+    /// hands the filters the same memory.
+    pub fn decision_input<'a>(
+        &'a self,
+        observation: ArrayView3<'a, f32>,
+        reference: ArrayView3<'a, f32>,
+        pixel: (usize, usize),
+        mode: Mode,
+        joint: Option<&'a JointEstimate>,
+    ) -> DecisionInput<'a> {
+        DecisionInput {
+            observation,
+            reference,
+            pixel,
+            banned: self.banned(),
+            previous: self.previous(),
+            mode,
+            joint,
+            motion: self.motion(),
+            long_motion: self.long_motion(),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -175,5 +202,21 @@ mod tests {
             EpisodeMemory::from_parts(vec![], None, Some(bad)).long_motion(),
             None
         );
+    }
+
+    #[test]
+    fn a_decision_input_carries_the_whole_memory() {
+        let mut m = EpisodeMemory::default();
+        m.gripper_at(Vector3::zeros());
+        m.record(Vector3::x(), false);
+        m.gripper_at(Vector3::new(0.0, 0.1, 0.0));
+        let image = ndarray::Array3::<f32>::zeros((2, 3, 10));
+        let input = m.decision_input(image.view(), image.view(), (1, 2), Mode::Goal, None);
+        assert_eq!(input.banned, &[Vector3::x()]);
+        assert_eq!(input.previous, Some(Vector3::x()));
+        assert_eq!(input.motion, m.motion());
+        assert_eq!(input.long_motion, m.long_motion());
+        assert!(input.motion.is_some() && input.long_motion.is_some());
+        assert_eq!((input.pixel, input.mode), ((1, 2), Mode::Goal));
     }
 }

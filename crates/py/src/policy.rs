@@ -274,17 +274,13 @@ impl Policy {
         if let Some(g) = gripper {
             self.memory.gripper_at(g);
         }
-        let input = DecisionInput {
-            observation: image.view(),
-            reference: reference.view(),
+        let input = self.memory.decision_input(
+            image.view(),
+            reference.view(),
             pixel,
-            banned: self.memory.banned(),
-            previous: self.memory.previous(),
             mode,
-            joint: self.joint.as_ref(),
-            motion: self.memory.motion(),
-            long_motion: self.memory.long_motion(),
-        };
+            self.joint.as_ref(),
+        );
         let (inner, rng) = (&self.inner, &mut self.rng);
         let mut out = py
             .detach(|| inner.directions(std::slice::from_ref(&input), std::slice::from_mut(rng)))

@@ -15,7 +15,6 @@ use std::path::{Path, PathBuf};
 use stream::{EpisodeWriter, RunState};
 use umpnet_eval::Protocol;
 use umpnet_eval::benchmark::{BenchConfig, PolicyFactory, Row, Shard, stream_benchmark};
-use umpnet_policy::policy::DirectionFilter;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
 use umpnet_sim::physics::PhysicsProfile;
@@ -73,22 +72,8 @@ pub struct EvalArgs {
     /// Comma-separated policies: random, oracle, umpnet (with --model) or NAME=MODEL_DIR.
     #[arg(long, value_delimiter = ',', default_value = "oracle,random")]
     pub policies: Vec<String>,
-    /// Every learned policy's direction filter instead of its package's:
-    /// none, normal90 (within 90 degrees of the surface normal), prev90
-    /// (within 90 degrees of the previous action, the paper's +HP;
-    /// exploration only), joint45 (along the JointNet's joint), goal45
-    /// (toward where the goal frame shows the part; goal only) or onward45
-    /// (onward where the gripper went; exploration only).
-    #[arg(long, value_parser = crate::choice::<DirectionFilter>(crate::DIRECTION_FILTERS))]
-    pub direction_filter: Option<DirectionFilter>,
-    /// A learned policy's grasp rule instead of its package's (model.json
-    /// `grasp`): affordance (the paper: the PositionNet's best pixel),
-    /// affordance_times_movable (weighted by the JointNet's movable mask) or
-    /// affordance_times_movable_lever (and by the lever arm about a hinge).
-    #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
-    pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
-    pub scoring: crate::policies::ScoringArgs,
+    pub learned: crate::policies::LearnedArgs,
     /// Model package for `umpnet` (default: models/umpnet-gpu-medium).
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -202,9 +187,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         a.model.as_deref(),
         threads,
         a.task,
-        a.direction_filter,
-        a.grasp_rule,
-        a.scoring.resolve(),
+        a.learned.resolve(),
     )?;
     let mut models = BTreeMap::new();
     for (name, dir) in &resolved.packages {
@@ -262,13 +245,13 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         categories,
         objects,
         partnet,
-        direction_filter: a.direction_filter.map(|f| f.name().to_owned()),
-        grasp_rule: a.grasp_rule.map(|g| g.name().to_owned()),
+        direction_filter: a.learned.direction_filter.map(|f| f.name().to_owned()),
+        grasp_rule: a.learned.grasp_rule.map(|g| g.name().to_owned()),
         sampler: a
-            .scoring
+            .learned
             .sampler()
             .map(|s| format!("{} {}", s.name(), s.samples())),
-        mirror_average: a.scoring.mirror_average,
+        mirror_average: a.learned.mirror_average,
     };
     if let Some(dir) = &a.out
         && !a.force

@@ -54,19 +54,8 @@ pub struct InferArgs {
     /// read; a session reads it from `--gripper` instead.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub motion: Vec<f32>,
-    /// The policy's direction filter instead of its package's: none,
-    /// normal90, prev90 (exploration only), joint45, goal45 (goal only) or
-    /// onward45 (exploration only); docs/cli.md says what each keeps.
-    #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::DirectionFilter>(crate::DIRECTION_FILTERS))]
-    pub direction_filter: Option<umpnet_policy::policy::DirectionFilter>,
-    /// A learned policy's grasp rule instead of its package's (model.json
-    /// `grasp`): affordance (the paper: the PositionNet's best pixel),
-    /// affordance_times_movable (weighted by the JointNet's movable mask) or
-    /// affordance_times_movable_lever (and by the lever arm about a hinge).
-    #[arg(long, value_parser = crate::choice::<umpnet_policy::policy::GraspRule>(crate::GRASP_RULES))]
-    pub grasp_rule: Option<umpnet_policy::policy::GraspRule>,
     #[command(flatten)]
-    pub scoring: crate::policies::ScoringArgs,
+    pub learned: crate::policies::LearnedArgs,
     /// Pixel (row,col) the gripper holds; without it the position action is chosen.
     #[arg(long, value_delimiter = ',')]
     pub grasp: Vec<usize>,
@@ -198,17 +187,10 @@ pub(crate) fn read_inputs(a: &InferArgs) -> Result<Inputs> {
     };
     let pkg = ModelPackage::load(&model, 1, 1, None)
         .with_context(|| format!("loading {}", model.display()))?;
-    let mut policy = UmpnetPolicy::new(std::sync::Arc::new(pkg));
-    if let Some(f) = a.direction_filter {
-        policy = policy.with_direction_filter(f);
-    }
-    if let Some(g) = a.grasp_rule {
-        policy = policy.with_grasp(g)?;
-    }
-    if let Some(s) = a.scoring.sampler() {
-        policy = policy.with_sampler(s);
-    }
-    policy = policy.with_mirror_average(a.scoring.mirror_average);
+    let policy = a
+        .learned
+        .resolve()
+        .apply(UmpnetPolicy::new(std::sync::Arc::new(pkg)))?;
     let previous = vector_arg("--previous", &a.previous, true)?.map(|v| v.normalize());
     let motion = vector_arg("--motion", &a.motion, false)?;
     let (mh, mw) = policy.resolution();
