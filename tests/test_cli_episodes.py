@@ -327,6 +327,21 @@ def test_scale_and_pose_place_an_object_file_as_pybullet_load_urdf_would(tmp_pat
         assert p.returncode == 2 and says in p.stderr, (bad, p.stderr)
 
 
+def test_the_joint_axis_of_a_scaled_object_file_is_read_at_its_scale():
+    """The axis line after an episode reads the scene's own (scaled) object:
+    at scale 3 the drawer's sampled values lie beyond the file's 0.4 m, and
+    reading them against the unscaled file refused the scene."""
+    cabinet = str(ROOT / "crates" / "sim" / "tests" / "data" / "cabinet.urdf")
+    kinds = set()
+    for seed in range(6):
+        p = run("explore", "--object", cabinet, "--scale", "3", "--policy", "oracle", "--seed", str(seed))
+        line = next(ln for ln in p.stdout.splitlines() if ln.startswith("joint axis"))
+        if "deg apart" in line:
+            kinds.add(line.split("(")[1].split(",")[0])
+            assert float(line.split(" deg apart")[0].rsplit(" ", 1)[1]) < 15.0, line
+    assert kinds == {"prismatic", "revolute"}, kinds
+
+
 def built_with_rerun(tmp_path) -> bool:
     """`--rrd` needs the `rerun` feature (`make test-rerun`). Without it the
     flag must refuse at once, name the fix and write nothing."""

@@ -448,7 +448,8 @@ fn print_axis_estimate(ep: &umpnet_eval::episode::Episode) -> Result<()> {
         .map(|s| Vector3::from(s.record.direction))
         .collect();
     let axis = axis_of_known_kind(&dirs, err.prismatic).unwrap_or_default();
-    let model = std::sync::Arc::new(ep.scene.object.load()?);
+    // At the scene's scale: its joint values (prismatic ones scale) are the scaled object's.
+    let model = std::sync::Arc::new(ep.scene.load_model()?);
     let mut art = umpnet_sim::physics::Articulation::new(
         model,
         ep.scene.world_from_base(),
