@@ -237,6 +237,69 @@ def test_angle_units_follow_the_file_unless_the_including_model_sets_them(tmp_pa
     assert p.returncode == 2 and "--angle" in p.stderr and "radian" in p.stderr
 
 
+# A cabinet written the way LIBERO's articulated objects are (robosuite's object layout):
+# plain MuJoCo refuses it four ways that robosuite never meets.
+ROBOSUITE_CABINET = """<mujoco model="cabinet">
+  <compiler angle="radian" meshdir="no_such_folder/" inertiafromgeom="auto" inertiagrouprange="4 4"/>
+  <asset>
+    <mesh name="knob" file="parts/knob.obj"/>
+    <material name="wood" rgba=".6 .4 .2 1"/>
+    <material name="wood" rgba=".1 .9 .1 1"/>
+  </asset>
+  <worldbody>
+    <body>
+      <body name="object">
+        <geom type="box" size=".3 .2 .3" pos="0 0 .3" group="1" material="wood"/>
+        <geom type="box" size=".3 .2 .3" pos="0 0 .3" group="0" rgba=".3 .3 1 .5"/>
+        <body name="door" pos=".3 -.21 .3">
+          <joint name="hinge" type="hinge" axis="0 0 1" range="0 1.2"/>
+          <geom type="box" size=".3 .01 .3" pos="-.3 0 0" group="1" rgba=".9 .9 .9 1"/>
+          <geom type="box" size=".3 .01 .3" pos="-.3 0 0" group="0" rgba=".3 .3 1 .5"/>
+          <geom type="mesh" mesh="knob" pos="-.5 -.02 0" group="1" rgba=".9 .9 .9 1"/>
+        </body>
+      </body>
+      <site name="bottom_site" pos="0 0 0" size=".01"/>
+      <region name="region_1" pos="0 0 0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_robosuite_objects_are_read_as_robosuite_includes_them(tmp_path):
+    """--robosuite: only the `object` body, robosuite's compiler instead of
+    the file's, asset files beside the file, the first of two same-named
+    assets, and group 1 (robosuite's visual group) drawn."""
+    src = tmp_path / "src"
+    (src / "parts").mkdir(parents=True)
+    (src / "parts" / "knob.obj").write_text(
+        "v 0 0 0\nv .04 0 0\nv 0 .04 0\nv 0 0 .04\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+    )
+    cabinet = src / "cabinet.xml"
+    cabinet.write_text(ROBOSUITE_CABINET)
+    p = importer("import-mjcf", cabinet, "--out", tmp_path / "plain", check=False)
+    assert p.returncode == 1 and "MuJoCo cannot compile it" in p.stderr, p.stderr
+    report = json.loads(importer("import-mjcf", cabinet, "--out", tmp_path / "out", "--robosuite", "--json").stdout)
+    (done,) = report["imported"]
+    assert [(j["type"], j["lower"], j["upper"]) for j in done["joints"]] == [("revolute", 0.0, pytest.approx(1.2))]
+    warnings = " | ".join(done["warnings"])
+    assert 'inertiagrouprange="4 4"' in warnings and 'meshdir="no_such_folder/"' in warnings, warnings
+    assert "angle=" not in warnings and "material `wood` is named twice: the first kept" in warnings, warnings
+    dest = tmp_path / "out" / "cabinet"
+    meta = json.loads((dest / "object_meta_info.json").read_text())
+    assert meta["source"]["included_as"] == "robosuite" and "angle" not in meta["source"]
+    # Group 1 only: the first `wood` on the body, white on the door; no translucent blue collision boxes.
+    colours = sorted({m.read_text().split("Kd ")[1].strip() for m in (dest / "textured_objs").glob("*.mtl")})
+    assert colours == ["0.6000 0.4000 0.2000", "0.9000 0.9000 0.9000"], colours
+    assert len(list((dest / "textured_objs").glob("*.obj"))) == 3  # body, door, knob
+    p = importer("import-mjcf", cabinet, "--out", tmp_path / "x", "--robosuite", "--angle", "radian", check=False)
+    assert p.returncode == 2 and "--angle" in p.stderr and "--robosuite" in p.stderr, p.stderr
+    loose = src / "loose.xml"
+    loose.write_text(ROBOSUITE_CABINET.replace('name="object"', 'name="cabinet"'))
+    p = importer("import-mjcf", loose, "--out", tmp_path / "y", "--robosuite", check=False)
+    assert p.returncode == 1 and str(loose) in p.stderr and "no body named `object`" in p.stderr, p.stderr
+
+
 def test_franka_kitchen_imports_its_three_appliances_and_names_what_it_leaves_out(tmp_path):
     # The scene's layout: appliances as bodies of one file that also holds
     # the robot and scenery; each becomes its own object, by body name.

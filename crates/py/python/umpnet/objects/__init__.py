@@ -4,7 +4,7 @@
     python -m umpnet.objects metaworld --out data/external
     python -m umpnet.objects franka-kitchen --out data/kitchen
 
-MJCF (MuJoCo's format: Meta-World, MuJoCo Menagerie, robosuite, dm_control)
+MJCF (MuJoCo's format: Meta-World, MuJoCo Menagerie, robosuite and LIBERO, dm_control)
 is compiled by the official ``mujoco`` package, so defaults, classes,
 includes, ``<compiler>`` settings, frames, orientations and mesh scales are
 resolved by MuJoCo itself. The importer reads the compiled model at its

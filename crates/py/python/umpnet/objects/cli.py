@@ -76,12 +76,20 @@ def main(argv: list[str] | None = None) -> int:
     common.add_argument("--json", action="store_true", help="print what was done as JSON")
     placing = argparse.ArgumentParser(add_help=False)
     placing.add_argument("--yaw", type=float, default=0.0, help="turn the object about z (degrees) to face -y")
-    placing.add_argument(
+    including = placing.add_mutually_exclusive_group()
+    including.add_argument(
         "--angle",
         choices=ANGLE_UNITS,
         help="the unit of the file's angles where the model that includes it sets it "
         "(robosuite's objects: radian, from its <compiler angle=\"radian\"/>); default: the file's own, "
         "MuJoCo's degrees where it says nothing",
+    )
+    including.add_argument(
+        "--robosuite",
+        action="store_true",
+        help="read the file as robosuite (and LIBERO) include an object: only its body named `object`, "
+        "robosuite's <compiler angle=\"radian\"/> instead of the file's own, asset files relative to the file, "
+        "the first of assets that share a name",
     )
     one = sub.add_parser("import-mjcf", parents=[common, placing], help="import one MJCF file")
     one.add_argument("file", type=Path, help="an MJCF file, or a <mujocoinclude> fragment")
@@ -91,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         "import-folder",
         parents=[common, placing],
         help="import every articulated object among the MJCF files directly in a folder "
-        "(e.g. robosuite's models/assets/objects with --angle radian --yaw 90)",
+        "(e.g. robosuite's models/assets/objects with --robosuite --yaw 90, LIBERO's articulated_objects with --robosuite)",
     )
     folder.add_argument("folder", type=Path, help="a folder of MJCF files; the others are skipped with the reason")
     sub.add_parser(
@@ -114,12 +122,18 @@ def main(argv: list[str] | None = None) -> int:
     kw = {"size": a.size, "dynamics": a.dynamics, "force": a.force}
     try:
         if a.command == "import-mjcf":
-            imported = [import_mjcf(a.file, a.out, a.name, yaw_deg=a.yaw, body=a.body, angle=a.angle, **kw)]
+            imported = [
+                import_mjcf(
+                    a.file, a.out, a.name, yaw_deg=a.yaw, body=a.body, angle=a.angle, robosuite=a.robosuite, **kw
+                )
+            ]
             skipped = []
         elif a.command == "import-folder":
             if not a.folder.is_dir():
                 raise ImportFailed(f"{a.folder}: no such folder")
-            imported, skipped = import_folder(a.folder, a.out, yaw_deg=a.yaw, angle=a.angle, **kw)
+            imported, skipped = import_folder(
+                a.folder, a.out, yaw_deg=a.yaw, angle=a.angle, robosuite=a.robosuite, **kw
+            )
             if not imported:
                 raise ImportFailed(f"{a.folder}: no articulated object among its {len(skipped)} MJCF files")
         elif a.command == "franka-kitchen":

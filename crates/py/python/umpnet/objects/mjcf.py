@@ -20,6 +20,9 @@ _PLANE, _HFIELD, _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = 0, 1, 2
 _DEFAULT_RGBA = np.array([0.5, 0.5, 0.5, 1.0])
 # The viewer draws groups 0-2 by default; files put collision-only geoms in 3-5.
 _VISUAL_GROUPS = range(3)
+# robosuite's convention (GEOMTYPE2GROUP): 0 collision, 1 visual; its cameras
+# draw group 1 unless asked to show collision meshes.
+_ROBOSUITE_VISUAL_GROUPS = (1,)
 # Joint dynamics of the generated objects (crates/sim/src/objects/builder.rs),
 # so imported objects meet the same physics as the benchmark's own.
 BENCHMARK_DAMPING = 2.0
@@ -91,18 +94,24 @@ def _root_tag(path: Path) -> str:
 ANGLE_UNITS = ("radian", "degree")
 
 
-def compile_mjcf(path: Path, angle: str | None = None):
+def compile_mjcf(path: Path, angle: str | None = None, robosuite: bool = False, warnings: list | None = None):
     """The compiled MjModel of ``path``. A ``<mujocoinclude>`` fragment is
     wrapped in a ``<mujoco>`` root beside it (so its relative paths resolve).
     ``angle`` ("radian" or "degree") is the unit of the file's angles, as a
     model that includes it declares (robosuite's objects are compiled inside
     one with ``<compiler angle="radian"/>``); None: the file's own, and
-    MuJoCo's degrees where it says nothing."""
+    MuJoCo's degrees where it says nothing. ``robosuite``: the file as
+    robosuite includes an object ([`robosuite_object_xml`]); what that
+    leaves out is appended to ``warnings``."""
     mujoco = _mujoco()
     if not path.is_file():
         raise ImportFailed(f"{path}: no such file")
     if angle is not None and angle not in ANGLE_UNITS:
         raise ImportFailed(f"--angle {angle}: expected one of {', '.join(ANGLE_UNITS)}")
+    if robosuite:
+        if angle is not None:
+            raise ImportFailed(f"{path}: --robosuite reads angles in radians, as robosuite does; leave out --angle")
+        return _compile_as_robosuite(mujoco, path, warnings if warnings is not None else [])
     if angle is not None and not hasattr(mujoco, "MjSpec"):
         raise ImportFailed(f"--angle needs MuJoCo 3.2 or newer (MjSpec); this is {mujoco.__version__}")
 
@@ -138,6 +147,79 @@ def compile_mjcf(path: Path, angle: str | None = None):
 
 
 _WORLDBODY_CHILDREN = {"body", "geom", "site", "camera", "light", "frame", "replicate"}
+# <compiler> settings that say what robosuite's own compiler, and reading
+# asset files beside the file, say anyway: not worth a warning.
+_AS_ROBOSUITE_READS = {("angle", "radian")} | {
+    (d, v) for d in ("meshdir", "texturedir", "assetdir") for v in ("", ".", "./")
+}
+
+
+def robosuite_object_xml(path: Path) -> tuple[str, list[str]]:
+    """``path`` as robosuite's ``MujocoXMLObject`` (and LIBERO, which builds
+    on it) puts an object into its scene, as one MJCF text, and what that
+    left out: only the body named ``object`` (``./body/body`` or, as LIBERO
+    also reads it, ``./body``), so the outer body's sites and annotations
+    stay out; robosuite's ``<compiler angle="radian"/>`` instead of the
+    file's own ``<compiler>``, which robosuite never merges (its inertia
+    groups, its ``meshdir``: asset files are read relative to the file,
+    where the caller writes this text); and of assets that share a tag and
+    a name, the first, as robosuite merges them. [`build`] then draws the
+    geoms robosuite's cameras draw: group 1, its visual group."""
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as e:
+        raise ImportFailed(f"{path}: not well-formed XML: {e}") from e
+    if root.tag != "mujoco":
+        raise ImportFailed(f"{path}: --robosuite reads a <mujoco> file (a robosuite object), found <{root.tag}>")
+    worldbody = root.find("worldbody")
+    obj = None if worldbody is None else worldbody.find("./body/body[@name='object']")
+    if obj is None and worldbody is not None:
+        obj = worldbody.find("./body[@name='object']")
+    if worldbody is None or obj is None:
+        raise ImportFailed(
+            f"{path}: no body named `object` under <worldbody><body> (robosuite reads an object from "
+            "./body/body[@name='object'])"
+        )
+    notes = []
+    for c in root.findall("compiler"):
+        differs = [f'{k}="{v}"' for k, v in c.attrib.items() if (k, v.strip()) not in _AS_ROBOSUITE_READS]
+        if differs:
+            notes.append(f"the file's <compiler {' '.join(differs)}> is not read, as robosuite does not")
+        root.remove(c)
+    root.insert(0, ET.Element("compiler", {"angle": "radian"}))
+    seen = set()
+    for asset in root.findall("asset"):
+        for el in list(asset):
+            key = (el.tag, el.get("name"))
+            if key[1] is not None and key in seen:
+                notes.append(f"{el.tag} `{key[1]}` is named twice: the first kept, as robosuite does")
+                asset.remove(el)
+                continue
+            seen.add(key)
+    for child in list(worldbody):
+        worldbody.remove(child)
+    worldbody.append(obj)
+    return ET.tostring(root, encoding="unicode"), notes
+
+
+def _compile_as_robosuite(mujoco, path: Path, warnings: list):
+    text, notes = robosuite_object_xml(path)
+    warnings.extend(notes)
+    # Beside the file, so that its asset files resolve as robosuite resolves them.
+    fd, copy = tempfile.mkstemp(prefix=".umpnet-robosuite-", suffix=".xml", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        try:
+            _check_raw(mujoco, Path(copy))
+        except ImportFailed as e:
+            raise ImportFailed(str(e).replace(copy, str(path), 1)) from e
+        try:
+            return mujoco.MjModel.from_xml_path(copy)
+        except Exception as e:  # MuJoCo raises ValueError; keep its words
+            raise ImportFailed(f"{path}: MuJoCo cannot compile it as robosuite includes it: {_one_line(e)}") from e
+    finally:
+        os.unlink(copy)
 
 
 def _top_level_tags(path: Path) -> set[str]:
@@ -315,13 +397,20 @@ def _ancestors(m, b: int) -> list[int]:
     return out
 
 
-def build(path: Path, dynamics: str = "benchmark", body: str | None = None, angle: str | None = None):
+def build(
+    path: Path,
+    dynamics: str = "benchmark",
+    body: str | None = None,
+    angle: str | None = None,
+    robosuite: bool = False,
+):
     """The object of an MJCF file as links and joints in the object frame at
     qpos0: every top-level subtree with a hinge or slide joint, or only the
     subtree of the named ``body`` (one appliance out of a scene); ``angle``
-    as [`compile_mjcf`] takes it."""
+    and ``robosuite`` as [`compile_mjcf`] takes them."""
     mujoco = _mujoco()
-    m = compile_mjcf(path, angle)
+    dropped, warnings = [], []
+    m = compile_mjcf(path, angle, robosuite, warnings)
     d = mujoco.MjData(m)
     d.qpos[:] = m.qpos0
     mujoco.mj_kinematics(m, d)
@@ -355,7 +444,6 @@ def build(path: Path, dynamics: str = "benchmark", body: str | None = None, angl
     joints: list[_Joint] = []
     # body -> link that carries it; with a named body, its parent stands for the base.
     owner = {0: 0} if body is None else {int(m.body_parentid[root]): 0}
-    dropped, warnings = [], []
     for b in range(1, m.nbody):
         if body is not None:
             if b != root and root not in _ancestors(m, b):
@@ -405,6 +493,7 @@ def build(path: Path, dynamics: str = "benchmark", body: str | None = None, angl
         raise ImportFailed(f"{path}: {len(links)} links after import; an object may have at most {_MAX_LINKS}")
 
     # Geometry: what a viewer draws, by the link that carries its body.
+    visual_groups = _ROBOSUITE_VISUAL_GROUPS if robosuite else _VISUAL_GROUPS
     shown: dict[int, list[int]] = {}
     hidden: dict[int, list[int]] = {}
     for g in range(m.ngeom):
@@ -415,7 +504,7 @@ def build(path: Path, dynamics: str = "benchmark", body: str | None = None, angl
         if b == 0 and int(m.geom_type[g]) in (_PLANE, _HFIELD):
             continue
         link = owner[b]
-        visible = int(m.geom_group[g]) in _VISUAL_GROUPS and _geom_rgba(m, g)[3] > 0.0
+        visible = int(m.geom_group[g]) in visual_groups and _geom_rgba(m, g)[3] > 0.0
         (shown if visible else hidden).setdefault(link, []).append(g)
     for link in range(len(links)):
         geoms = shown.get(link) or hidden.get(link, [])

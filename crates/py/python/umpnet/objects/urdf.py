@@ -56,17 +56,19 @@ def import_mjcf(
     force: bool = False,
     body: str | None = None,
     angle: str | None = None,
+    robosuite: bool = False,
 ) -> Imported:
     """Imports one MJCF file to ``out/NAME`` (NAME: the file's stem by
     default); ``angle``: the unit of its angles where a model that includes
-    it sets it ([`compile_mjcf`])."""
+    it sets it; ``robosuite``: the file as robosuite includes an object
+    ([`compile_mjcf`])."""
     path = Path(path)
     name = _safe(name or body or path.stem)
     if not (math.isfinite(size) and 0.01 <= size <= 100.0):
         raise ImportFailed(f"--size {size}: expected metres in [0.01, 100]")
     if not (math.isfinite(yaw_deg) and -360.0 <= yaw_deg <= 360.0):
         raise ImportFailed(f"--yaw {yaw_deg}: expected degrees in [-360, 360]")
-    links, joints, dropped, warnings = build(path, dynamics, body, angle)
+    links, joints, dropped, warnings = build(path, dynamics, body, angle, robosuite)
     bounds = _bounds(links)
     if bounds is None:
         raise ImportFailed(f"{path}: no visible geometry on the articulated bodies")
@@ -134,6 +136,8 @@ def import_mjcf(
     }
     if angle is not None:
         meta["source"]["angle"] = angle
+    if robosuite:
+        meta["source"]["included_as"] = "robosuite"
     (dest / "object_meta_info.json").write_text(json.dumps(meta, indent=2) + "\n")
     _check_loads(urdf, scale)
     return Imported(
