@@ -1,9 +1,9 @@
 """docs/objects.md's table of objects made elsewhere, from `make eval-objects`.
 
-    .venv/bin/python scripts/objects_table.py [--dir out] [--per-object]
+    .venv/bin/python scripts/objects_table.py [--dir out] [--set external] [--per-object]
 
-Reads DIR/external-goal/results.json and DIR/external-exploration/results.json
-(`umpnet eval --objects data/external`) and prints, per policy, the average
+Reads DIR/SET-goal/results.json and DIR/SET-exploration/results.json
+(`umpnet eval --objects data/SET`) and prints, per policy, the average
 over objects of goal success, goal normalised distance, the novel-state ratio
 and the share of valid grasps (exploration: the grasp landed on a movable
 part), each with the half-width of its 95% interval. The interval is the
@@ -52,9 +52,10 @@ def values(results: dict[str, dict]) -> dict:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--dir", type=Path, default=Path("out"))
+    p.add_argument("--set", default="external", help="read DIR/SET-goal and DIR/SET-exploration")
     p.add_argument("--per-object", action="store_true", help="one row per object and policy")
     a = p.parse_args(argv)
-    results = {task: load(a.dir / f"external-{task}" / "results.json") for task in ("goal", "exploration")}
+    results = {task: load(a.dir / f"{a.set}-{task}" / "results.json") for task in ("goal", "exploration")}
     policies = results["goal"]["summary"]["policies"]
     objects = [o["name"] for o in results["goal"]["summary"]["objects"]]
     n = results["goal"]["summary"]["episodes_per_category"]
