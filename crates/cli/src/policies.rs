@@ -102,7 +102,9 @@ pub struct LearnedArgs {
 /// The choices [`LearnedArgs`] asked for; None keeps the package's own.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Overrides {
+    /// `--direction-filter`.
     pub filter: Option<DirectionFilter>,
+    /// `--grasp-rule`.
     pub grasp: Option<GraspRule>,
     /// The sampler asked for, or None for the package's default (CEM, 64).
     pub sampler: Option<Sampler>,
