@@ -292,12 +292,35 @@ def test_robosuite_objects_are_read_as_robosuite_includes_them(tmp_path):
     colours = sorted({m.read_text().split("Kd ")[1].strip() for m in (dest / "textured_objs").glob("*.mtl")})
     assert colours == ["0.6000 0.4000 0.2000", "0.9000 0.9000 0.9000"], colours
     assert len(list((dest / "textured_objs").glob("*.obj"))) == 3  # body, door, knob
+    assert [p.name for p in src.iterdir() if p.name.startswith(".umpnet-")] == []
     p = importer("import-mjcf", cabinet, "--out", tmp_path / "x", "--robosuite", "--angle", "radian", check=False)
     assert p.returncode == 2 and "--angle" in p.stderr and "--robosuite" in p.stderr, p.stderr
     loose = src / "loose.xml"
     loose.write_text(ROBOSUITE_CABINET.replace('name="object"', 'name="cabinet"'))
     p = importer("import-mjcf", loose, "--out", tmp_path / "y", "--robosuite", check=False)
     assert p.returncode == 1 and str(loose) in p.stderr and "no body named `object`" in p.stderr, p.stderr
+
+
+def test_a_folder_where_no_temporary_copy_can_be_written_is_refused_by_name(tmp_path, monkeypatch):
+    """A fragment and a robosuite file are compiled from a copy beside them
+    (MuJoCo resolves relative paths from the file's folder); a read-only
+    folder is an ImportFailed naming the file, not a traceback."""
+    from umpnet.objects import mjcf
+
+    frag = tmp_path / "lid.xml"
+    frag.write_text('<mujocoinclude><body name="box"><geom type="box" size=".2 .2 .1"/></body></mujocoinclude>')
+    cabinet = tmp_path / "cabinet.xml"
+    cabinet.write_text(ROBOSUITE_CABINET)
+
+    def read_only(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(mjcf.tempfile, "mkstemp", read_only)
+    for path, robosuite in ((frag, False), (cabinet, True)):
+        with pytest.raises(umpnet.objects.ImportFailed) as e:
+            mjcf.compile_mjcf(path, robosuite=robosuite)
+        assert str(path) in str(e.value) and "cannot write a temporary file beside it" in str(e.value)
+        assert "Permission denied" in str(e.value)
 
 
 def test_franka_kitchen_imports_its_three_appliances_and_names_what_it_leaves_out(tmp_path):

@@ -3,6 +3,7 @@ become links (meshes in the object frame at ``qpos0``) and joints."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
@@ -133,17 +134,32 @@ def compile_mjcf(path: Path, angle: str | None = None, robosuite: bool = False, 
     include = f'<include file="{path.name}"/>'
     if _top_level_tags(path) & _WORLDBODY_CHILDREN:
         include = f"<worldbody>{include}</worldbody>"
-    fd, wrapper = tempfile.mkstemp(prefix=".umpnet-wrap-", suffix=".xml", dir=path.parent)
+    with _copy_beside(path, ".umpnet-wrap-", f'<mujoco model="{path.stem}">{include}</mujoco>\n') as wrapper:
+        try:
+            return load(wrapper)
+        except Exception as e:
+            raise ImportFailed(
+                f"{path}: a <mujocoinclude> fragment that MuJoCo cannot compile inside a <mujoco> root: {_one_line(e)}"
+            ) from e
+
+
+@contextlib.contextmanager
+def _copy_beside(path: Path, prefix: str, text: str):
+    """``text`` in a temporary file beside ``path``, where MuJoCo resolves
+    the file's relative paths from; removed afterwards."""
+    try:
+        fd, name = tempfile.mkstemp(prefix=prefix, suffix=".xml", dir=path.parent)
+    except OSError as e:
+        raise ImportFailed(
+            f"{path}: cannot write a temporary file beside it ({e.strerror}), where MuJoCo resolves the "
+            "file's relative paths from; copy its folder somewhere writable"
+        ) from e
     try:
         with os.fdopen(fd, "w") as f:
-            f.write(f'<mujoco model="{path.stem}">{include}</mujoco>\n')
-        return load(wrapper)
-    except Exception as e:
-        raise ImportFailed(
-            f"{path}: a <mujocoinclude> fragment that MuJoCo cannot compile inside a <mujoco> root: {_one_line(e)}"
-        ) from e
+            f.write(text)
+        yield name
     finally:
-        os.unlink(wrapper)
+        os.unlink(name)
 
 
 _WORLDBODY_CHILDREN = {"body", "geom", "site", "camera", "light", "frame", "replicate"}
@@ -206,10 +222,7 @@ def _compile_as_robosuite(mujoco, path: Path, warnings: list):
     text, notes = robosuite_object_xml(path)
     warnings.extend(notes)
     # Beside the file, so that its asset files resolve as robosuite resolves them.
-    fd, copy = tempfile.mkstemp(prefix=".umpnet-robosuite-", suffix=".xml", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
+    with _copy_beside(path, ".umpnet-robosuite-", text) as copy:
         try:
             _check_raw(mujoco, Path(copy))
         except ImportFailed as e:
@@ -218,8 +231,6 @@ def _compile_as_robosuite(mujoco, path: Path, warnings: list):
             return mujoco.MjModel.from_xml_path(copy)
         except Exception as e:  # MuJoCo raises ValueError; keep its words
             raise ImportFailed(f"{path}: MuJoCo cannot compile it as robosuite includes it: {_one_line(e)}") from e
-    finally:
-        os.unlink(copy)
 
 
 def _top_level_tags(path: Path) -> set[str]:
