@@ -279,6 +279,7 @@ def test_robosuite_objects_are_read_as_robosuite_includes_them(tmp_path):
     cabinet.write_text(ROBOSUITE_CABINET)
     p = importer("import-mjcf", cabinet, "--out", tmp_path / "plain", check=False)
     assert p.returncode == 1 and "MuJoCo cannot compile it" in p.stderr, p.stderr
+    assert "robosuite's object layout" in p.stderr and "--robosuite" in p.stderr, p.stderr
     report = json.loads(importer("import-mjcf", cabinet, "--out", tmp_path / "out", "--robosuite", "--json").stdout)
     (done,) = report["imported"]
     assert [(j["type"], j["lower"], j["upper"]) for j in done["joints"]] == [("revolute", 0.0, pytest.approx(1.2))]

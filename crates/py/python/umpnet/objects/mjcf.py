@@ -129,7 +129,12 @@ def compile_mjcf(path: Path, angle: str | None = None, robosuite: bool = False, 
         try:
             return load(str(path))
         except Exception as e:  # MuJoCo raises ValueError; keep its words
-            raise ImportFailed(f"{path}: MuJoCo cannot compile it: {_one_line(e)}") from e
+            hint = (
+                "; it has robosuite's object layout (a body named `object`): --robosuite reads it as robosuite does"
+                if _has_robosuite_layout(path)
+                else ""
+            )
+            raise ImportFailed(f"{path}: MuJoCo cannot compile it: {_one_line(e)}{hint}") from e
     # A fragment of bodies belongs in <worldbody>; one of assets or defaults in <mujoco>.
     include = f'<include file="{path.name}"/>'
     if _top_level_tags(path) & _WORLDBODY_CHILDREN:
@@ -216,6 +221,17 @@ def robosuite_object_xml(path: Path) -> tuple[str, list[str]]:
         worldbody.remove(child)
     worldbody.append(obj)
     return ET.tostring(root, encoding="unicode"), notes
+
+
+def _has_robosuite_layout(path: Path) -> bool:
+    """Whether ``path`` holds its object where robosuite's ``MujocoXMLObject`` reads it."""
+    try:
+        worldbody = ET.parse(path).getroot().find("worldbody")
+    except ET.ParseError:
+        return False
+    return worldbody is not None and any(
+        worldbody.find(f) is not None for f in ("./body/body[@name='object']", "./body[@name='object']")
+    )
 
 
 def _compile_as_robosuite(mujoco, path: Path, warnings: list):
