@@ -193,9 +193,7 @@ def robosuite_object_xml(path: Path) -> tuple[str, list[str]]:
     if root.tag != "mujoco":
         raise ImportFailed(f"{path}: --robosuite reads a <mujoco> file (a robosuite object), found <{root.tag}>")
     worldbody = root.find("worldbody")
-    obj = None if worldbody is None else worldbody.find("./body/body[@name='object']")
-    if obj is None and worldbody is not None:
-        obj = worldbody.find("./body[@name='object']")
+    obj = _robosuite_object_body(worldbody)
     if worldbody is None or obj is None:
         raise ImportFailed(
             f"{path}: no body named `object` under <worldbody><body> (robosuite reads an object from "
@@ -223,15 +221,25 @@ def robosuite_object_xml(path: Path) -> tuple[str, list[str]]:
     return ET.tostring(root, encoding="unicode"), notes
 
 
+def _robosuite_object_body(worldbody):
+    """The body named ``object`` where robosuite's ``MujocoXMLObject`` reads
+    it (``./body/body``), or where LIBERO also does (``./body``); None if
+    neither holds one."""
+    if worldbody is None:
+        return None
+    for where in ("./body/body[@name='object']", "./body[@name='object']"):
+        obj = worldbody.find(where)
+        if obj is not None:
+            return obj
+    return None
+
+
 def _has_robosuite_layout(path: Path) -> bool:
-    """Whether ``path`` holds its object where robosuite's ``MujocoXMLObject`` reads it."""
+    """Whether ``path`` holds its object where robosuite reads it."""
     try:
-        worldbody = ET.parse(path).getroot().find("worldbody")
+        return _robosuite_object_body(ET.parse(path).getroot().find("worldbody")) is not None
     except ET.ParseError:
         return False
-    return worldbody is not None and any(
-        worldbody.find(f) is not None for f in ("./body/body[@name='object']", "./body[@name='object']")
-    )
 
 
 def _compile_as_robosuite(mujoco, path: Path, warnings: list):
