@@ -369,6 +369,7 @@ pub fn render_meshes(model: &ObjectModel) -> Vec<RenderMesh> {
                 part: l,
                 segment: Segment::link_id(OBJECT_ID, l),
                 color: v.color,
+                opacity: v.opacity,
                 mesh: v.mesh_in_link.clone(),
             })
         })

@@ -40,6 +40,9 @@ pub struct VisualModel {
     pub mesh_in_link: TriMesh,
     /// Linear RGB in [0, 1] (the material's, the MTL's, or white).
     pub color: [f32; 3],
+    /// The material's alpha: 1 is opaque; below 1 the visual is drawn as
+    /// glass (see [`crate::render::RenderMesh::opacity`]).
+    pub opacity: f32,
 }
 
 /// One `<link>`.

@@ -5,7 +5,7 @@
     clippy::indexing_slicing,
     reason = "pixel and triangle indices are bounded by the buffers this renderer allocated"
 )]
-use super::{Frame, RenderMesh, Renderer, SEG_BACKGROUND, shade};
+use super::{Frame, RenderMesh, Renderer, SEG_BACKGROUND, shade, shade_glass};
 use crate::camera::Camera;
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Vec3};
@@ -36,6 +36,8 @@ impl Renderer for CpuRenderer {
         let mut positions = Vec::new();
         let mut triangles = Vec::new();
         let mut owner = Vec::new();
+        // What glass lets through: the opaque triangles alone.
+        let (mut opaque, mut opaque_owner) = (Vec::new(), Vec::new());
         for (mi, m) in self.meshes.iter().enumerate() {
             let t = part_transforms
                 .get(m.part)
@@ -49,8 +51,13 @@ impl Renderer for CpuRenderer {
             for tri in &m.mesh.triangles {
                 let [a, b, c] = tri.map(|i| positions[(base + i) as usize]);
                 if (b - a).cross(c - a).length_squared() > 1e-14 {
-                    triangles.push([base + tri[0], base + tri[1], base + tri[2]]);
+                    let t = [base + tri[0], base + tri[1], base + tri[2]];
+                    triangles.push(t);
                     owner.push(mi);
+                    if m.opacity >= 1.0 {
+                        opaque.push(t);
+                        opaque_owner.push(mi);
+                    }
                 }
             }
         }
@@ -72,8 +79,16 @@ impl Renderer for CpuRenderer {
             return Ok(frame);
         }
         let ntri = triangles.len() as u32;
-        let bvh = ParryMesh::new(positions, triangles)
-            .map_err(|e| SimError::Render(format!("building the ray-casting BVH: {e:?}")))?;
+        let has_glass = opaque.len() < triangles.len();
+        let bvh_of = |positions, triangles| {
+            ParryMesh::new(positions, triangles)
+                .map_err(|e| SimError::Render(format!("building the ray-casting BVH: {e:?}")))
+        };
+        let behind_glass = match (has_glass, opaque.is_empty()) {
+            (true, false) => Some(bvh_of(positions.clone(), opaque)?),
+            _ => None,
+        };
+        let bvh = bvh_of(positions, triangles)?;
         let forward = world_from_camera.rotation * Vec3::Z;
         for row in 0..h {
             for col in 0..w {
@@ -106,9 +121,39 @@ impl Renderer for CpuRenderer {
                 frame.depth[i] = z;
                 frame.segmentation[i] = m.segment;
                 frame.normal_in_world[i] = n.to_array();
-                frame.rgb[i * 3..i * 3 + 3].copy_from_slice(&shade(m.color, n));
+                let rgb = if m.opacity < 1.0 {
+                    let behind = behind_glass
+                        .as_ref()
+                        .and_then(|b| self.opaque_color(b, &opaque_owner, &ray, camera.far));
+                    shade_glass(m.color, n, m.opacity, behind.unwrap_or([0; 3]))
+                } else {
+                    shade(m.color, n)
+                };
+                frame.rgb[i * 3..i * 3 + 3].copy_from_slice(&rgb);
             }
         }
         Ok(frame)
+    }
+}
+
+impl CpuRenderer {
+    /// The shaded colour of the nearest opaque surface along `ray`, from
+    /// the BVH of the opaque triangles and each one's mesh.
+    fn opaque_color(
+        &self,
+        opaque: &ParryMesh,
+        owner: &[usize],
+        ray: &Ray,
+        far: f32,
+    ) -> Option<[u8; 3]> {
+        let hit = opaque.cast_local_ray_and_get_normal(ray, far, true)?;
+        let m = self.meshes.get(*owner.get(hit.subshape as usize)?)?;
+        let t = opaque.triangle(hit.subshape);
+        let point = ray.origin + ray.dir * hit.time_of_impact;
+        let mut n = (t.b - t.a).cross(t.c - t.a).normalize();
+        if n.dot(ray.origin - point) < 0.0 {
+            n = -n;
+        }
+        Some(shade(m.color, n))
     }
 }

@@ -23,7 +23,8 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipeline: wgpu::RenderPipeline,
+    /// Opaque meshes, glass depth, glass colour (see `pipelines`).
+    pipelines: [wgpu::RenderPipeline; 3],
     layout: wgpu::BindGroupLayout,
     adapter_name: String,
     /// Serialises all use of the device.
@@ -88,45 +89,95 @@ fn init() -> std::result::Result<Gpu, String> {
         bind_group_layouts: &[Some(&layout)],
         immediate_size: 0,
     });
-    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("umpnet pipeline"),
-        layout: Some(&pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: &shader,
-            entry_point: Some("vs_main"),
-            compilation_options: Default::default(),
-            buffers: &[Some(wgpu::VertexBufferLayout {
-                array_stride: std::mem::size_of::<Vertex>() as u64,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Uint32, 3 => Uint32],
-            })],
-        },
-        fragment: Some(wgpu::FragmentState {
-            module: &shader,
-            entry_point: Some("fs_main"),
-            compilation_options: Default::default(),
-            targets: &[Some(COLOR_FORMAT.into()), Some(DATA_FORMAT.into())],
-        }),
-        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-        multisample: Default::default(),
-        multiview_mask: None,
-        cache: None,
-    });
+    let pipelines = pipelines(&device, &shader, &pipeline_layout);
     Ok(Gpu {
         adapter_name: format!("{:?} {}", info.backend, info.name),
         device,
         queue,
-        pipeline,
+        pipelines,
         layout,
         lock: Mutex::new(()),
     })
+}
+
+/// The opaque pipeline, then the two that draw glass over it.
+fn pipelines(
+    device: &wgpu::Device,
+    shader: &wgpu::ShaderModule,
+    pipeline_layout: &wgpu::PipelineLayout,
+) -> [wgpu::RenderPipeline; 3] {
+    // Opaque meshes; then glass in two draws: its nearest depth first (no
+    // colour), then its colour blended where the depth is that nearest
+    // glass's, so one layer of glass shows whatever order its triangles come in.
+    let pipeline = |label, targets: &[Option<wgpu::ColorTargetState>], depth_write, compare| {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(label),
+            layout: Some(pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Uint32, 3 => Uint32],
+                })],
+            },
+            fragment: Some(wgpu::FragmentState {
+                module: shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets,
+            }),
+            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(depth_write),
+                depth_compare: Some(compare),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            multiview_mask: None,
+            cache: None,
+        })
+    };
+    let target = |format: wgpu::TextureFormat, blend, write_mask| {
+        Some(wgpu::ColorTargetState {
+            format,
+            blend,
+            write_mask,
+        })
+    };
+    let (all, none) = (wgpu::ColorWrites::ALL, wgpu::ColorWrites::empty());
+    let opaque = pipeline(
+        "umpnet opaque",
+        &[
+            target(COLOR_FORMAT, None, all),
+            target(DATA_FORMAT, None, all),
+        ],
+        true,
+        wgpu::CompareFunction::Less,
+    );
+    let glass_depth = pipeline(
+        "umpnet glass depth",
+        &[
+            target(COLOR_FORMAT, None, none),
+            target(DATA_FORMAT, None, none),
+        ],
+        true,
+        wgpu::CompareFunction::Less,
+    );
+    let glass = pipeline(
+        "umpnet glass",
+        &[
+            target(COLOR_FORMAT, Some(wgpu::BlendState::ALPHA_BLENDING), all),
+            target(DATA_FORMAT, None, all),
+        ],
+        false,
+        wgpu::CompareFunction::Equal,
+    );
+    [opaque, glass_depth, glass]
 }
 
 #[repr(C)]
@@ -156,11 +207,20 @@ struct Targets {
     data_buf: wgpu::Buffer,
 }
 
-/// The wgpu renderer: one draw of every part per frame into colour, depth,
-/// segment and normal targets, read back to a [`Frame`].
+/// A scene's vertex buffer: the opaque meshes' vertices, then the glass's.
+#[derive(Clone)]
+struct Vertices {
+    buffer: wgpu::Buffer,
+    opaque: std::ops::Range<u32>,
+    glass: std::ops::Range<u32>,
+}
+
+/// The wgpu renderer: each frame draws the opaque meshes, then any glass
+/// over them, into colour, depth, segment and normal targets, read back to a
+/// [`Frame`].
 pub struct GpuRenderer {
     gpu: Arc<Gpu>,
-    vertices: Option<(wgpu::Buffer, u32)>,
+    vertices: Option<Vertices>,
     camera_buf: wgpu::Buffer,
     parts_buf: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
@@ -257,9 +317,10 @@ impl GpuRenderer {
     }
 }
 
-fn pack_color(c: [f32; 3]) -> u32 {
-    let [r, g, b] = c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u32);
-    r | (g << 8) | (b << 16) | (255 << 24)
+fn pack_color(c: [f32; 3], opacity: f32) -> u32 {
+    let [r, g, b, a] =
+        [c[0], c[1], c[2], opacity].map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u32);
+    r | (g << 8) | (b << 16) | (a << 24)
 }
 
 fn unpack_snorm(v: u32) -> (f32, f32) {
@@ -278,14 +339,18 @@ impl Renderer for GpuRenderer {
 
     fn load(&mut self, meshes: &[RenderMesh]) -> Result<()> {
         let mut verts = Vec::new();
-        for m in meshes {
+        // Opaque meshes first: glass is drawn over them.
+        let opaque = meshes.iter().filter(|m| m.opacity >= 1.0);
+        let glass = meshes.iter().filter(|m| m.opacity < 1.0);
+        let mut opaque_vertices = 0;
+        for m in opaque.chain(glass) {
             if m.part >= MAX_PARTS {
                 return Err(SimError::Render(format!(
                     "part slot {} exceeds the {MAX_PARTS} supported",
                     m.part
                 )));
             }
-            let color = pack_color(m.color);
+            let color = pack_color(m.color, m.opacity);
             for t in &m.mesh.triangles {
                 for &i in t {
                     let p = m.mesh.positions[i as usize];
@@ -296,6 +361,9 @@ impl Renderer for GpuRenderer {
                         segment: m.segment,
                     });
                 }
+            }
+            if m.opacity >= 1.0 {
+                opaque_vertices = verts.len() as u32;
             }
         }
         // wgpu panics on a buffer over the device's limit: refuse it here.
@@ -320,7 +388,11 @@ impl Renderer for GpuRenderer {
                 contents: bytemuck::cast_slice(&verts),
                 usage: wgpu::BufferUsages::VERTEX,
             });
-        self.vertices = Some((buf, verts.len() as u32));
+        self.vertices = Some(Vertices {
+            buffer: buf,
+            opaque: 0..opaque_vertices,
+            glass: opaque_vertices..verts.len() as u32,
+        });
         Ok(())
     }
 
@@ -388,7 +460,7 @@ impl GpuRenderer {
         gpu.queue
             .write_buffer(&self.parts_buf, 0, bytemuck::cast_slice(&parts));
         let bind_group = self.bind_group.clone();
-        let vertices = self.vertices.as_ref().map(|(b, c)| (b.clone(), *c));
+        let vertices = self.vertices.clone();
         let t = self.targets(w, h);
         let color_view = t.color.create_view(&Default::default());
         let data_view = t.data.create_view(&Default::default());
@@ -420,11 +492,8 @@ impl GpuRenderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            if let Some((buf, count)) = &vertices {
-                pass.set_pipeline(&gpu.pipeline);
-                pass.set_bind_group(0, &bind_group, &[]);
-                pass.set_vertex_buffer(0, buf.slice(..));
-                pass.draw(0..*count, 0..1);
+            if let Some(v) = &vertices {
+                draw(&mut pass, gpu, v, &bind_group);
             }
         }
         let copy =
@@ -507,6 +576,21 @@ impl GpuRenderer {
                 }
             });
         Ok(frame)
+    }
+}
+
+/// Draws the opaque vertices, then the glass over them.
+fn draw(pass: &mut wgpu::RenderPass<'_>, gpu: &Gpu, v: &Vertices, bind_group: &wgpu::BindGroup) {
+    let [opaque, glass_depth, glass] = &gpu.pipelines;
+    pass.set_bind_group(0, bind_group, &[]);
+    pass.set_vertex_buffer(0, v.buffer.slice(..));
+    pass.set_pipeline(opaque);
+    pass.draw(v.opaque.clone(), 0..1);
+    if !v.glass.is_empty() {
+        pass.set_pipeline(glass_depth);
+        pass.draw(v.glass.clone(), 0..1);
+        pass.set_pipeline(glass);
+        pass.draw(v.glass.clone(), 0..1);
     }
 }
 

@@ -72,6 +72,13 @@ pub struct RenderMesh {
     pub segment: u32,
     /// Linear RGB in [0, 1].
     pub color: [f32; 3],
+    /// 1 for an opaque surface. Below 1 the mesh is glass: in the colour
+    /// image the nearest glass surface in front of the nearest opaque one is
+    /// blended over it with this weight (one layer of glass; panes behind it
+    /// do not show), while depth, segmentation and normals report the glass
+    /// surface itself, the exact geometry a simulator knows and a suction cup
+    /// can grasp.
+    pub opacity: f32,
     /// The triangles, in the part's frame.
     pub mesh: TriMesh,
 }
@@ -248,9 +255,24 @@ pub(crate) fn check_resolution(camera: &Camera) -> Result<(u32, u32)> {
 
 /// Flat shading with one light, shared by both renderers.
 pub(crate) fn shade(color: [f32; 3], normal: Vec3) -> [u8; 3] {
+    shade_unrounded(color, normal).map(|c| c.round().clamp(0.0, 255.0) as u8)
+}
+
+/// [`shade`] before rounding, in 0..=255: glass blends this over the
+/// opaque pixel behind it, as the rasteriser's blend unit does.
+fn shade_unrounded(color: [f32; 3], normal: Vec3) -> [f32; 3] {
     let light = Vec3::new(0.3, -0.6, 0.75).normalize();
     let k = 0.35 + 0.65 * normal.dot(light).max(0.0);
-    color.map(|c| (c * k * 255.0).round().clamp(0.0, 255.0) as u8)
+    color.map(|c| c * k * 255.0)
+}
+
+/// A glass surface's colour over the opaque pixel `behind` (see
+/// [`RenderMesh::opacity`]).
+pub(crate) fn shade_glass(color: [f32; 3], normal: Vec3, opacity: f32, behind: [u8; 3]) -> [u8; 3] {
+    // The rasteriser reads the opacity from a byte of the vertex colour.
+    let a = (opacity.clamp(0.0, 1.0) * 255.0).round() / 255.0;
+    let front = shade_unrounded(color, normal).map(|c| c.clamp(0.0, 255.0));
+    std::array::from_fn(|i| (front[i] * a + f32::from(behind[i]) * (1.0 - a)).round() as u8)
 }
 
 pub(crate) const PLANE_COLOR: [f32; 3] = [0.62, 0.6, 0.58];
@@ -270,6 +292,7 @@ pub fn plane_mesh(part: usize) -> RenderMesh {
         part,
         segment: SEG_PLANE,
         color: PLANE_COLOR,
+        opacity: 1.0,
         mesh: m,
     }
 }
@@ -286,6 +309,7 @@ pub fn gripper_mesh(part: usize) -> RenderMesh {
         part,
         segment: SEG_GRIPPER,
         color: GRIPPER_COLOR,
+        opacity: 1.0,
         mesh: m,
     }
 }

@@ -1,5 +1,7 @@
 // One pass writes colour (rgba8) and a uint target: linear depth bits,
 // segment id and the packed world normal (GL cannot render R32Float).
+// Glass (alpha below 1 in the vertex colour) is drawn after the opaque
+// meshes, by the same shader with blending on the colour target.
 const MAX_PARTS: u32 = 66u;
 
 struct Camera {
@@ -20,7 +22,9 @@ struct VertexIn {
 };
 
 struct VertexOut {
-    @builtin(position) clip: vec4<f32>,
+    // Invariant: the glass pass tests depth for equality with the glass
+    // depth pass, so both must compute the same position.
+    @builtin(position) @invariant clip: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) view_z: f32,
     @location(2) @interpolate(flat) color: u32,
@@ -51,10 +55,10 @@ fn fs_main(in: VertexOut) -> FragOut {
     if (dot(n, camera.eye.xyz - in.world) < 0.0) {
         n = -n;
     }
-    let base = unpack4x8unorm(in.color).rgb;
+    let base = unpack4x8unorm(in.color);
     let k = 0.35 + 0.65 * max(dot(n, camera.light.xyz), 0.0);
     var out: FragOut;
-    out.color = vec4<f32>(base * k, 1.0);
+    out.color = vec4<f32>(base.rgb * k, base.a);
     out.data = vec4<u32>(bitcast<u32>(in.view_z), in.segment, pack2x16snorm(n.xy), pack2x16snorm(vec2<f32>(n.z, 0.0)));
     return out;
 }

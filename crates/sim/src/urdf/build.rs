@@ -123,17 +123,21 @@ fn mesh_path_in(base_dir: &Path, filename: &str) -> Option<PathBuf> {
     }
 }
 
-fn material_color(m: &Option<urdf_rs::Material>, named: &HashMap<String, [f32; 3]>) -> [f32; 3] {
+fn material_rgba(m: &Option<urdf_rs::Material>, named: &HashMap<String, [f32; 4]>) -> [f32; 4] {
     // PyBullet's colour for a visual without a material (its
     // getVisualShapeData gives rgba 1 1 1 1): white, apart from the grey floor.
-    const DEFAULT: [f32; 3] = [1.0, 1.0, 1.0];
+    const DEFAULT: [f32; 4] = [1.0, 1.0, 1.0, 1.0];
     match m {
         Some(m) => match &m.color {
-            Some(c) => [c.rgba.0[0] as f32, c.rgba.0[1] as f32, c.rgba.0[2] as f32],
+            Some(c) => rgba(c),
             None => named.get(&m.name).copied().unwrap_or(DEFAULT),
         },
         None => DEFAULT,
     }
+}
+
+fn rgba(c: &urdf_rs::Color) -> [f32; 4] {
+    c.rgba.0.map(|v| v as f32)
 }
 
 #[expect(
@@ -151,17 +155,10 @@ pub(super) fn build_model(
     if robot.links.is_empty() {
         return Err(urdf_err(path, "no <link> elements"));
     }
-    let named_colors: HashMap<String, [f32; 3]> = robot
+    let named_colors: HashMap<String, [f32; 4]> = robot
         .materials
         .iter()
-        .filter_map(|m| {
-            m.color.as_ref().map(|c| {
-                (
-                    m.name.clone(),
-                    [c.rgba.0[0] as f32, c.rgba.0[1] as f32, c.rgba.0[2] as f32],
-                )
-            })
-        })
+        .filter_map(|m| m.color.as_ref().map(|c| (m.name.clone(), rgba(c))))
         .collect();
     let mut link_index = HashMap::new();
     let mut links = Vec::with_capacity(robot.links.len());
@@ -186,10 +183,12 @@ pub(super) fn build_model(
                     ),
                 ));
             }
+            // The MTL's colour wins, as in PyBullet; the alpha is the URDF material's.
+            let [r, g, b, alpha] = material_rgba(&v.material, &named_colors);
             visuals.push(VisualModel {
                 mesh_in_link: mesh,
-                color: mtl_color(&v.geometry, base_dir)
-                    .unwrap_or_else(|| material_color(&v.material, &named_colors)),
+                color: mtl_color(&v.geometry, base_dir).unwrap_or([r, g, b]),
+                opacity: alpha,
             });
         }
         let (mass, com, inertia, derived) = if with_inertial.contains(&l.name) {

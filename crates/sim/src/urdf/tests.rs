@@ -87,6 +87,41 @@ fn a_visual_without_material_is_white_as_in_pybullet_not_the_floors_grey() {
 }
 
 #[test]
+fn a_material_alpha_below_one_is_glass_whether_given_inline_or_by_name() {
+    let body = r#"<material name="tinted"><color rgba="0.6 0.8 0.9 0.35"/></material>
+        <link name="base">
+          <visual><geometry><box size="1 1 1"/></geometry></visual>
+          <visual><geometry><box size="1 1 1"/></geometry><material name="tinted"/></visual>
+          <visual><geometry><box size="1 1 1"/></geometry>
+            <material name="inline"><color rgba="0.1 0.2 0.3 0.5"/></material></visual>
+          <visual><geometry><box size="1 1 1"/></geometry>
+            <material name="solid"><color rgba="0.1 0.2 0.3 1"/></material></visual>
+        </link>"#;
+    let m = parse_urdf(&wrap(body), Path::new("obj/mobility.urdf")).unwrap();
+    let got: Vec<(f32, [f32; 3])> = m.links[0]
+        .visuals
+        .iter()
+        .map(|v| (v.opacity, v.color))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            (1.0, [1.0, 1.0, 1.0]),
+            (0.35, [0.6, 0.8, 0.9]),
+            (0.5, [0.1, 0.2, 0.3]),
+            (1.0, [0.1, 0.2, 0.3])
+        ]
+    );
+    let meshes = crate::env::render_meshes(&m);
+    let opacities: Vec<f32> = meshes.iter().map(|r| r.opacity).collect();
+    assert_eq!(
+        opacities,
+        [1.0, 0.35, 0.5, 1.0, 1.0, 1.0],
+        "visuals, floor, gripper"
+    );
+}
+
+#[test]
 fn partnet_limit_without_velocity_and_stray_chars_load() {
     let m = parse_urdf(
         &wrap(&format!(
