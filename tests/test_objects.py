@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import umpnet
+from PIL import Image
 
 ROOT = Path(__file__).resolve().parents[1]
 UMPNET = os.environ.get("UMPNET_BIN", str(ROOT / "target" / "release" / "umpnet"))
@@ -95,6 +96,9 @@ def test_metaworld_objects_import_and_load_and_the_rest_are_skipped_with_a_reaso
         assert "tablelink" in o["dropped"]
         objs = list((out / name / "textured_objs").glob("*.obj"))
         assert objs and all(p.with_suffix(".mtl").is_file() for p in objs)
+        # The windows' panes are the only translucent geoms Meta-World draws (rgba alpha 0.1).
+        alphas = [float(c.get("rgba").split()[3]) for c in ET.parse(urdf).getroot().iter("color")]
+        assert alphas == ([0.1, 0.1] if name.startswith("window") else []), name
     skipped = {s["file"]: s["why"] for s in report["skipped"]}
     assert "no hinge or slide joint (only free joints)" in skipped["box.xml"]
     assert "MuJoCo cannot compile it" in skipped["table.xml"]
@@ -451,3 +455,42 @@ def test_one_body_of_a_scene_file_is_imported_alone(tmp_path):
     assert "no body named `hinge`" in p.stderr and "carcass, drawer, left_door, right_door" in p.stderr
     p = importer("import-mjcf", CABINET, "--body", "table", "--out", tmp_path, check=False)
     assert p.returncode == 1 and "no hinge or slide joint in body `table`" in p.stderr
+
+
+GLASS_BOX = """<mujoco><worldbody><body name="case">
+  <geom type="box" size=".3 .2 .3" pos="0 0 .3" rgba=".8 .2 .1 1"/>
+  <body name="door" pos=".3 -.22 .3">
+    <joint name="hinge" type="hinge" axis="0 0 1" range="-1.5 0"/>
+    <geom type="box" size=".3 .01 .28" pos="-.3 0 0" rgba=".6 .8 .9 {alpha}"/>
+  </body>
+  <body name="flap" pos="0 .2 .62">
+    <joint name="flap" type="hinge" axis="1 0 0" range="0 1"/>
+    <geom type="box" size=".1 .1 .01" pos="0 .1 0" rgba=".2 .9 .2 0"/>
+  </body>
+</body></worldbody></mujoco>"""
+
+
+def test_a_translucent_geom_is_drawn_as_glass_and_a_hidden_one_drawn_for_want_of_others_is_opaque(tmp_path):
+    frames = {}
+    for alpha in ["0.3", "1"]:
+        xml = tmp_path / f"glass_{alpha}.xml"
+        xml.write_text(GLASS_BOX.format(alpha=alpha))
+        importer("import-mjcf", xml, "--out", tmp_path, "--name", f"case_{alpha}")
+        urdf = tmp_path / f"case_{alpha}" / "mobility.urdf"
+        # The door's alpha becomes its URDF material's; the flap (alpha 0, the only
+        # geom of its link, so drawn from it) and the case stay opaque.
+        colors = [c.get("rgba").split() for c in ET.parse(urdf).getroot().iter("color")]
+        assert colors == ([["0.6000", "0.8000", "0.9000", "0.3000"]] if alpha != "1" else []), colors
+        out = tmp_path / f"render_{alpha}"
+        umpnet_cli("--json", "render", "--object", urdf, "--renderer", "cpu", "--resolution", "60x80",
+                   "--seed", "1", "--out", out)  # fmt: skip
+        rgb = np.asarray(Image.open(out / "color.png").convert("RGB"), dtype=np.int32)
+        seg = np.asarray(Image.open(out / "segmentation.png").convert("RGB"), dtype=np.int32)
+        frames[alpha] = (rgb, seg, np.load(out / "depth.npy"))
+    (glass, seg_g, depth_g), (solid, seg_s, depth_s) = frames["0.3"], frames["1"]
+    # Same geometry, so the same depth and segments; only the colour shows the case through the door.
+    assert np.array_equal(depth_g, depth_s) and np.array_equal(seg_g, seg_s)
+    changed = np.any(glass != solid, axis=2)
+    assert 20 < changed.sum() < changed.size / 2, changed.sum()
+    # Through the door the red case shows: more red than the opaque door has.
+    assert (glass[changed][:, 0] > solid[changed][:, 0]).mean() > 0.9

@@ -232,7 +232,9 @@ impl Recorder {
             if m.part >= links {
                 continue; // the floor and the gripper are not the object's
             }
-            let color = m.color.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+            let byte = |c: f32| (c.clamp(0.0, 1.0) * 255.0).round() as u8;
+            let [r, g, b] = m.color.map(byte);
+            let vertex_color = rerun::Color::from_unmultiplied_rgba(r, g, b, byte(m.opacity));
             let k = m.mesh.positions.len();
             let mesh = rerun::Mesh3D::new(m.mesh.positions.iter().map(|p| p.to_array()))
                 .with_triangle_indices(
@@ -241,10 +243,8 @@ impl Recorder {
                         .iter()
                         .map(|t| rerun::TriangleIndices::from(*t)),
                 )
-                .with_vertex_colors(vec![
-                    rerun::Color::from_rgb(color[0], color[1], color[2]);
-                    k
-                ]);
+                // Glass keeps its opacity in the viewer too.
+                .with_vertex_colors(vec![vertex_color; k]);
             // One entity per visual: a link may have several.
             let visual = format!("world/object/link_{}/visual_{}", m.part, m.segment);
             rec.log_static(visual, &mesh).map_err(&err)?;

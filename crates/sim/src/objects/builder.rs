@@ -11,8 +11,49 @@ use std::fmt::Write as _;
 
 pub(crate) struct PartLink {
     pub name: String,
-    pub mesh: TriMesh,
+    /// Each box's mesh in the link frame, in the order the recipe gave them.
+    pub boxes: Vec<TriMesh>,
     pub color: [f32; 3],
+    /// Which boxes are glass, and how it looks.
+    pub glass: Option<Glass>,
+}
+
+/// Boxes of a link drawn as glass: a tint and an opacity below 1 (the
+/// renderer's `RenderMesh::opacity`).
+pub(crate) struct Glass {
+    pub boxes: Vec<usize>,
+    pub color: [f32; 3],
+    pub opacity: f32,
+}
+
+impl PartLink {
+    /// Every box as one mesh.
+    pub fn mesh(&self) -> TriMesh {
+        self.mesh_of(|_| true)
+    }
+
+    /// The boxes that are not glass, as one mesh.
+    pub fn opaque_mesh(&self) -> TriMesh {
+        self.mesh_of(|b| !self.is_glass(b))
+    }
+
+    /// The glass boxes as one mesh; None when the link has none.
+    pub fn glass_mesh(&self) -> Option<TriMesh> {
+        let g = self.glass.as_ref()?;
+        (!g.boxes.is_empty()).then(|| self.mesh_of(|b| self.is_glass(b)))
+    }
+
+    fn is_glass(&self, b: usize) -> bool {
+        self.glass.as_ref().is_some_and(|g| g.boxes.contains(&b))
+    }
+
+    fn mesh_of(&self, keep: impl Fn(usize) -> bool) -> TriMesh {
+        let mut mesh = TriMesh::default();
+        for (_, b) in self.boxes.iter().enumerate().filter(|(i, _)| keep(*i)) {
+            mesh.append(b);
+        }
+        mesh
+    }
 }
 
 pub(crate) struct PartJoint {
@@ -49,16 +90,17 @@ impl Parts {
         boxes: &[(Vec3, Vec3)],
         color: [f32; 3],
     ) -> usize {
-        let mut mesh = TriMesh::default();
-        for (centre, size) in boxes {
-            mesh.append(
-                &TriMesh::cuboid(*size).transformed(&Pose3::from_translation(*centre - origin)),
-            );
-        }
+        let boxes = boxes
+            .iter()
+            .map(|(centre, size)| {
+                TriMesh::cuboid(*size).transformed(&Pose3::from_translation(*centre - origin))
+            })
+            .collect();
         self.links.push(PartLink {
             name: name.to_owned(),
-            mesh,
+            boxes,
             color,
+            glass: None,
         });
         self.origins.push(origin);
         self.links.len() - 1
@@ -94,14 +136,36 @@ impl Parts {
         child
     }
 
-    pub fn mesh_file(link: usize) -> String {
-        format!("textured_objs/original-{link}.obj")
+    /// Each link's meshes as (file relative to the URDF, mesh, rgba): its
+    /// opaque boxes in `original-N.obj` (left out when every box is glass),
+    /// then any glass in `glass-N.obj`.
+    pub fn meshes(&self) -> Vec<Vec<(String, TriMesh, [f32; 4])>> {
+        self.links
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                let opaque = l.opaque_mesh();
+                let glass = l.glass.as_ref().zip(l.glass_mesh());
+                let mut files = Vec::new();
+                if !opaque.triangles.is_empty() || glass.is_none() {
+                    let [r, g, b] = l.color;
+                    let file = format!("textured_objs/original-{i}.obj");
+                    files.push((file, opaque, [r, g, b, 1.0]));
+                }
+                if let Some((glass, mesh)) = glass {
+                    let [r, g, b] = glass.color;
+                    let file = format!("textured_objs/glass-{i}.obj");
+                    files.push((file, mesh, [r, g, b, glass.opacity]));
+                }
+                files
+            })
+            .collect()
     }
 
     /// Every length multiplied by `factor`: meshes, joint origins, slider limits.
     pub fn scale(&mut self, factor: f32) {
         for l in &mut self.links {
-            for p in &mut l.mesh.positions {
+            for p in l.boxes.iter_mut().flat_map(|b| &mut b.positions) {
                 *p *= factor;
             }
         }
@@ -125,21 +189,38 @@ impl Parts {
     pub fn urdf(&self, name: &str) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "<?xml version=\"1.0\"?>\n<robot name=\"{name}\">");
-        for (i, l) in self.links.iter().enumerate() {
-            let (lo, hi) = l.mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+        for (l, files) in self.links.iter().zip(self.meshes()) {
+            let (lo, hi) = l.mesh().bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
             let size = (hi - lo).max(Vec3::splat(0.005));
             let com = (lo + hi) * 0.5;
             let mass = 1.0f32;
             let ix = mass / 12.0 * (size.y * size.y + size.z * size.z);
             let iy = mass / 12.0 * (size.x * size.x + size.z * size.z);
             let iz = mass / 12.0 * (size.x * size.x + size.y * size.y);
-            let [r, g, b] = l.color;
-            let file = Self::mesh_file(i);
             let _ = writeln!(
                 s,
-                "  <link name=\"{}\">\n    <inertial>\n      <origin xyz=\"{:.5} {:.5} {:.5}\" rpy=\"0 0 0\"/>\n      <mass value=\"{mass:.5}\"/>\n      <inertia ixx=\"{ix:.6}\" ixy=\"0\" ixz=\"0\" iyy=\"{iy:.6}\" iyz=\"0\" izz=\"{iz:.6}\"/>\n    </inertial>\n    <visual>\n      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <geometry><mesh filename=\"{file}\"/></geometry>\n      <material name=\"{}_color\"><color rgba=\"{r:.3} {g:.3} {b:.3} 1\"/></material>\n    </visual>\n    <collision>\n      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <geometry><mesh filename=\"{file}\"/></geometry>\n    </collision>\n  </link>",
-                l.name, com.x, com.y, com.z, l.name
+                "  <link name=\"{}\">\n    <inertial>\n      <origin xyz=\"{:.5} {:.5} {:.5}\" rpy=\"0 0 0\"/>\n      <mass value=\"{mass:.5}\"/>\n      <inertia ixx=\"{ix:.6}\" ixy=\"0\" ixz=\"0\" iyy=\"{iy:.6}\" iyz=\"0\" izz=\"{iz:.6}\"/>\n    </inertial>",
+                l.name, com.x, com.y, com.z
             );
+            for (k, (file, _, [r, g, b, a])) in files.iter().enumerate() {
+                // The first material keeps the name files had before glass.
+                let material = match k {
+                    0 => format!("{}_color", l.name),
+                    _ => format!("{}_glass", l.name),
+                };
+                let _ = writeln!(
+                    s,
+                    "    <visual>\n      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <geometry><mesh filename=\"{file}\"/></geometry>\n      <material name=\"{material}\"><color rgba=\"{r:.3} {g:.3} {b:.3} {}\"/></material>\n    </visual>",
+                    alpha(*a)
+                );
+            }
+            for (file, ..) in &files {
+                let _ = writeln!(
+                    s,
+                    "    <collision>\n      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <geometry><mesh filename=\"{file}\"/></geometry>\n    </collision>"
+                );
+            }
+            s.push_str("  </link>\n");
         }
         for (k, j) in self.joints.iter().enumerate() {
             let kind = match j.kind {
@@ -165,5 +246,14 @@ impl Parts {
         }
         s.push_str("</robot>\n");
         s
+    }
+}
+
+/// An alpha as the URDF writes it: `1` for opaque, as files had before glass.
+fn alpha(a: f32) -> String {
+    if a >= 1.0 {
+        "1".into()
+    } else {
+        format!("{a:.3}")
     }
 }

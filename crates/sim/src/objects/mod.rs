@@ -196,10 +196,10 @@ pub fn generate(category: Category, index: u32, dataset_seed: u64) -> GeneratedO
     // The families are designed at scene size; files are at PartNet's.
     parts.scale(1.0 / PARTNET_SCALE);
     let meshes = parts
-        .links
-        .iter()
-        .enumerate()
-        .map(|(i, l)| (builder::Parts::mesh_file(i), l.mesh.clone()))
+        .meshes()
+        .into_iter()
+        .flatten()
+        .map(|(file, mesh, _)| (file, mesh))
         .collect();
     GeneratedObject {
         category,
@@ -357,6 +357,70 @@ mod tests {
             assert!(
                 (0.2..0.6).contains(&share),
                 "{category}: {train_variants} of {train} training instances are variants"
+            );
+        }
+    }
+
+    #[test]
+    fn only_training_instances_draw_glass_and_it_covers_panels_not_handles() {
+        for category in [
+            Category::Window,
+            Category::Microwave,
+            Category::Refrigerator,
+            Category::StorageFurniture,
+        ] {
+            let (mut train, mut glazed) = (0, 0);
+            for index in 0..60 {
+                let object = generate(category, index, 0);
+                let model = object.file_model().unwrap();
+                let glass: Vec<&crate::model::VisualModel> = model
+                    .links
+                    .iter()
+                    .flat_map(|l| &l.visuals)
+                    .filter(|v| v.opacity < 1.0)
+                    .collect();
+                if instance_split(category, index) == InstanceSplit::Test {
+                    assert!(glass.is_empty(), "{category} {index}: held out, with glass");
+                    continue;
+                }
+                train += 1;
+                glazed += usize::from(!glass.is_empty());
+                for v in glass {
+                    assert!((0.2..=0.6).contains(&v.opacity), "{category} {index}");
+                    // Panels only: the glass is thin, and no handle stands on it.
+                    let (lo, hi) = v.mesh_in_link.bounds().unwrap();
+                    let thin = (hi - lo).min_element() * PARTNET_SCALE;
+                    assert!(
+                        thin <= 0.045 + 1e-4,
+                        "{category} {index}: glass {thin} m thick"
+                    );
+                }
+                // A glazed link keeps its frame or handle opaque.
+                for l in &model.links {
+                    let glazed = l.visuals.iter().any(|v| v.opacity < 1.0);
+                    let opaque = l.visuals.iter().any(|v| v.opacity >= 1.0);
+                    assert!(
+                        !glazed || opaque,
+                        "{category} {index}: {} is all glass",
+                        l.name
+                    );
+                }
+            }
+            let share = glazed as f64 / train as f64;
+            assert!(
+                (0.15..0.6).contains(&share),
+                "{category}: {glazed} of {train} training instances have glass"
+            );
+        }
+        // The other categories never do.
+        for index in 0..20 {
+            let model = generate(Category::Oven, index, 0).file_model().unwrap();
+            assert!(
+                model
+                    .links
+                    .iter()
+                    .flat_map(|l| &l.visuals)
+                    .all(|v| v.opacity >= 1.0)
             );
         }
     }

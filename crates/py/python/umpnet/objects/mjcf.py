@@ -46,7 +46,7 @@ class ImportFailed(Exception):
 class _Link:
     name: str
     origin: np.ndarray  # frame origin in the object frame (all link frames share its axes)
-    visuals: list = field(default_factory=list)  # (vertices in the object frame, faces, rgb)
+    visuals: list = field(default_factory=list)  # (vertices in the object frame, faces, rgba)
 
 
 @dataclass
@@ -543,6 +543,8 @@ def build(
         (shown if visible else hidden).setdefault(link, []).append(g)
     for link in range(len(links)):
         geoms = shown.get(link) or hidden.get(link, [])
+        # Hidden geoms drawn for want of visible ones are drawn opaque.
+        opaque = link not in shown
         if link in hidden and link not in shown and link > 0:
             warnings.append(f"link `{links[link].name}` has only collision geoms: drawn from those")
         for g in geoms:
@@ -553,5 +555,8 @@ def build(
             rot = np.array(d.geom_xmat[g], dtype=np.float64).reshape(3, 3)
             v_in_object = v @ rot.T + np.array(d.geom_xpos[g], dtype=np.float64)
             _check_number(path, f"geom {g} vertices", v_in_object)
-            links[link].visuals.append((v_in_object, f, _geom_rgba(m, g)[:3]))
+            rgba = _geom_rgba(m, g)
+            if opaque:
+                rgba[3] = 1.0
+            links[link].visuals.append((v_in_object, f, rgba))
     return links, joints, dropped, warnings

@@ -29,6 +29,15 @@ def _write_obj(path: Path, verts: np.ndarray, faces: np.ndarray, rgb, material: 
     path.write_text("\n".join(lines) + "\n")
 
 
+def _glass(rgba, k: int) -> str:
+    """A translucent geom's alpha as a URDF material (the loader draws it as
+    glass; the colour stays the MTL's); nothing for an opaque one."""
+    r, g, b, a = (float(c) for c in rgba)
+    if a >= 1.0:
+        return ""
+    return f'      <material name="m{k}"><color rgba="{r:.4f} {g:.4f} {b:.4f} {a:.4f}"/></material>\n'
+
+
 def _inertial(link: _Link) -> str:
     """1 kg with the inertia of its geometry's bounding box at the box's centre:
     the convention of the generated objects (PyBullet's mass for PartNet's
@@ -94,12 +103,12 @@ def import_mjcf(
     k = 0
     for link in links:
         parts = [f'  <link name="{link.name}">\n', _inertial(link)]
-        for verts, faces, rgb in link.visuals:
+        for verts, faces, rgba in link.visuals:
             file = f"textured_objs/original-{k}.obj"
-            _write_obj(dest / file, verts - link.origin, faces, rgb, f"m{k}")
+            _write_obj(dest / file, verts - link.origin, faces, rgba[:3], f"m{k}")
             geom = f'<geometry><mesh filename="{file}"/></geometry>'
             parts.append(
-                f'    <visual>\n      <origin xyz="0 0 0" rpy="0 0 0"/>\n      {geom}\n    </visual>\n'
+                f'    <visual>\n      <origin xyz="0 0 0" rpy="0 0 0"/>\n      {geom}\n{_glass(rgba, k)}    </visual>\n'
                 f'    <collision>\n      <origin xyz="0 0 0" rpy="0 0 0"/>\n      {geom}\n'
                 f"    </collision>\n"
             )

@@ -170,7 +170,7 @@ pub(super) fn safe(p: &mut Parts, rng: &mut R) {
     let (cb, cp) = (color(rng), color(rng));
     let b = body(p, s * u(rng, 0.9, 1.1), s, s * u(rng, 0.9, 1.3), 0.0, cb);
     let (w, h) = p.links[b]
-        .mesh
+        .mesh()
         .bounds()
         .map(|(lo, hi)| (hi.x - lo.x, hi.z - lo.z))
         .unwrap_or((s, s));

@@ -1,9 +1,11 @@
 //! Parametric families for the paper's 22 categories: a kit of parts
 //! (`parts`) and one recipe per category (`furniture`, `small`), each drawing
-//! its sizes, limits and colours from the instance's seeded RNG. Object
+//! its sizes, limits and colours from the instance's seeded RNG; training
+//! instances also draw other mechanisms (`variants`) and glass (`glass`). Object
 //! frame: origin on the floor at the footprint centre, z up, front face
 //! toward -y (the camera).
 mod furniture;
+mod glass;
 mod parts;
 mod small;
 mod variants;
@@ -25,6 +27,9 @@ pub(crate) fn build(category: Category, rng: &mut R, test_instance: bool) -> Par
     let mut variant_rng = rng.clone();
     variant_rng.set_stream(1);
     let variant = !test_instance && variant_rng.random_bool(VARIANT_SHARE);
+    // Glass has a stream of its own for the same reasons.
+    let mut glass_rng = rng.clone();
+    glass_rng.set_stream(2);
     match category {
         Category::StorageFurniture if variant => variants::flap_cabinet(&mut p, &mut variant_rng),
         Category::Window if variant => variants::hung_window(&mut p, &mut variant_rng),
@@ -55,6 +60,9 @@ pub(crate) fn build(category: Category, rng: &mut R, test_instance: bool) -> Par
         Category::KitchenPot => small::kitchen_pot(&mut p, rng),
         Category::Bucket => small::bucket(&mut p, rng),
         Category::Door => furniture::door(&mut p, rng),
+    }
+    if !test_instance {
+        glass::glaze(category, &mut p, &mut glass_rng);
     }
     p
 }
