@@ -281,6 +281,30 @@ def test_render_writes_images_and_depth(tmp_path):
     assert cam["width"] == 160 and cam["height"] == 120
 
 
+def test_objects_generate_draws_glass_as_asked_and_the_default_keeps_the_benchmarks_objects(tmp_path):
+    def generate(folder, *glass):
+        run("objects", "generate", "--out", str(tmp_path / folder), "--per-category", "5",
+            "--categories", "Oven,Window", *glass)  # fmt: skip
+        split = json.loads((tmp_path / folder / "split.json").read_text())
+        glazed = sorted(str(p.parent.parent.relative_to(tmp_path / folder))
+                        for p in (tmp_path / folder).glob("*/*/textured_objs/glass-*.obj"))  # fmt: skip
+        return split, sorted(set(glazed))
+
+    split, glazed = generate("default")
+    # Only training instances (Window 0-3) may be glazed; Oven is a test category and Window/4 is held out.
+    assert "glass" not in split and glazed and all(g.startswith("Window/") and g != "Window/4" for g in glazed)
+    split, glazed = generate("all", "--glass", "all")
+    assert split["glass"] == "all" and glazed == [f"{c}/{i}" for c in ("Oven", "Window") for i in range(5)]
+    split, glazed = generate("none", "--glass", "none")
+    assert split["glass"] == "none" and glazed == []
+    # The objects themselves are the default's, glass or not.
+    for i in range(5):
+        a, b = (tmp_path / f / "Oven" / str(i) / "mobility.urdf" for f in ("default", "none"))
+        assert a.read_text() == b.read_text()
+    p = run("objects", "generate", "--out", str(tmp_path / "bad"), "--glass", "some", check=False)
+    assert p.returncode == 2 and "expected training, all or none" in p.stderr, p.stderr
+
+
 def test_objects_generate_layout_and_split(tmp_path):
     run("objects", "generate", "--out", str(tmp_path), "--per-category", "5", "--categories", "Door,Laptop")
     split = json.loads((tmp_path / "split.json").read_text())

@@ -1,7 +1,7 @@
 use crate::Ctx;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
-use umpnet_sim::objects::{Category, write_dataset};
+use umpnet_sim::objects::{Category, GlassDraw, write_dataset};
 
 #[derive(clap::Subcommand)]
 pub enum ObjectsCmd {
@@ -19,12 +19,21 @@ pub enum ObjectsCmd {
         /// Comma-separated categories (default: all 22).
         #[arg(long, value_delimiter = ',', value_parser = crate::parse_category)]
         categories: Vec<Category>,
+        /// Which instances draw glass panels: training (a share of the training instances of
+        /// Window, Microwave, Refrigerator and StorageFurniture; the benchmark's objects), all
+        /// (every instance of those and of Oven, WashingMachine and Door: a probe) or none.
+        #[arg(long, default_value = "training", value_parser = parse_glass)]
+        glass: GlassDraw,
         /// Write into a folder that is not empty (files of the same instances are replaced).
         #[arg(long)]
         force: bool,
     },
     /// List the categories with their split, step budget and joint types.
     List,
+}
+
+fn parse_glass(s: &str) -> Result<GlassDraw, String> {
+    s.parse().map_err(|e: umpnet_sim::SimError| e.to_string())
 }
 
 pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
@@ -34,6 +43,7 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
             per_category,
             seed,
             categories,
+            glass,
             force,
         } => {
             let _claim = crate::outdir::claim(out, *force, &[])?;
@@ -46,7 +56,7 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
             let pb = ctx.progress(cats.len() as u64, "generating");
             let mut split = serde_json::Map::new();
             for c in &cats {
-                let v = write_dataset(out, &[*c], *per_category, *seed)
+                let v = write_dataset(out, &[*c], *per_category, *seed, *glass)
                     .with_context(|| format!("generating {c}"))?;
                 if let Some(m) = v.get("categories").and_then(|c| c.as_object()) {
                     split.extend(m.clone());
@@ -54,7 +64,13 @@ pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
                 pb.inc(1);
             }
             pb.finish_and_clear();
-            let value = serde_json::json!({"dataset_seed": seed, "categories": split});
+            let mut value = serde_json::Map::new();
+            value.insert("dataset_seed".into(), (*seed).into());
+            value.insert("categories".into(), split.into());
+            // Said only when not the default, so default datasets keep their files.
+            if *glass != GlassDraw::Training {
+                value.insert("glass".into(), serde_json::to_value(glass)?);
+            }
             umpnet_sim::fsio::write_atomic(
                 &out.join("split.json"),
                 serde_json::to_string_pretty(&value)?.as_bytes(),

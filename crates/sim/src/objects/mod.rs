@@ -188,11 +188,51 @@ pub fn generated_pose() -> crate::model::ObjectPose {
     }
 }
 
+/// Which instances draw glass panels (`families::glass`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GlassDraw {
+    /// A share of the training instances of the categories that have glass
+    /// (the benchmark's objects: held-out instances and test categories never).
+    #[default]
+    Training,
+    /// Every instance of a category that has glass, held-out and test
+    /// categories' too: a probe of how a policy meets glass it never saw.
+    All,
+    /// No instance.
+    None,
+}
+
+impl std::str::FromStr for GlassDraw {
+    type Err = SimError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "training" => Ok(GlassDraw::Training),
+            "all" => Ok(GlassDraw::All),
+            "none" => Ok(GlassDraw::None),
+            _ => Err(SimError::Other(format!(
+                "unknown glass draw `{s}`; expected training, all or none"
+            ))),
+        }
+    }
+}
+
 /// Generates instance `index` of `category`; a pure function of its arguments.
 pub fn generate(category: Category, index: u32, dataset_seed: u64) -> GeneratedObject {
+    generate_with(category, index, dataset_seed, GlassDraw::Training)
+}
+
+/// [`generate`] with another choice of which instances draw glass; with
+/// [`GlassDraw::Training`] the same object.
+pub fn generate_with(
+    category: Category,
+    index: u32,
+    dataset_seed: u64,
+    glass: GlassDraw,
+) -> GeneratedObject {
     let mut rng = ChaCha8Rng::seed_from_u64(instance_seed(dataset_seed, category, index));
     let test = instance_split(category, index) == InstanceSplit::Test;
-    let mut parts = families::build(category, &mut rng, test);
+    let mut parts = families::build(category, &mut rng, test, glass);
     // The families are designed at scene size; files are at PartNet's.
     parts.scale(1.0 / PARTNET_SCALE);
     let meshes = parts
@@ -266,19 +306,21 @@ impl GeneratedObject {
     }
 }
 
-/// Writes `per_category` instances of each category and `split.json` under `root`.
+/// Writes `per_category` instances of each category and `split.json` under
+/// `root`, glass drawn as `glass` says.
 pub fn write_dataset(
     root: &Path,
     categories: &[Category],
     per_category: u32,
     dataset_seed: u64,
+    glass: GlassDraw,
 ) -> Result<serde_json::Value> {
     let mut split = serde_json::Map::new();
     for &c in categories {
         let mut train = Vec::new();
         let mut test = Vec::new();
         for i in 0..per_category {
-            let obj = generate(c, i, dataset_seed);
+            let obj = generate_with(c, i, dataset_seed, glass);
             obj.write(root)?;
             match instance_split(c, i) {
                 InstanceSplit::Train => train.push(obj.id()),

@@ -2,8 +2,10 @@
 //! have glass in the world (windows, microwave doors, display cabinets,
 //! drinks fridges) get their panels drawn as tinted glass. The geometry and
 //! the joints stay as the recipe made them; only the look changes. Held-out
-//! instances and the test categories never draw glass (see `families::build`),
-//! so every published figure keeps its objects.
+//! instances and the test categories never draw glass by default (see
+//! `families::build`), so every published figure keeps its objects;
+//! `GlassDraw::All` glazes every instance, oven, washing machine and door
+//! included, as a probe.
 #![allow(
     clippy::indexing_slicing,
     reason = "the generator indexes parts it created itself; no input reaches it"
@@ -15,7 +17,7 @@ use crate::objects::Category;
 use rand::Rng;
 
 /// A training instance of a category in [`glazed_panels`] is, with this
-/// probability, glazed.
+/// probability, glazed (`GlassDraw::Training`).
 pub(super) const GLASS_SHARE: f64 = 0.35;
 
 /// A panel: a box at most this thick (m, scene size)...
@@ -25,6 +27,7 @@ const PANEL_SIDE: f32 = 0.12;
 
 /// Which links of a category may hold glass panels: every link of a window
 /// (its fixed pane, sashes and casements); the hinged doors of the others.
+/// The test categories here draw glass only under `GlassDraw::All`.
 fn glazed_panels(category: Category) -> Option<fn(&Parts, usize) -> bool> {
     fn any(_: &Parts, _: usize) -> bool {
         true
@@ -36,7 +39,12 @@ fn glazed_panels(category: Category) -> Option<fn(&Parts, usize) -> bool> {
     }
     match category {
         Category::Window => Some(any),
-        Category::Microwave | Category::Refrigerator | Category::StorageFurniture => Some(hinged),
+        Category::Microwave
+        | Category::Refrigerator
+        | Category::StorageFurniture
+        | Category::Oven
+        | Category::WashingMachine
+        | Category::Door => Some(hinged),
         _ => None,
     }
 }
@@ -51,14 +59,14 @@ fn is_panel(mesh: &crate::mesh::TriMesh) -> bool {
     size[0] <= PANEL_THICK && size[1] >= PANEL_SIDE
 }
 
-/// Glazes the panels of `p` with one glass, tint and opacity drawn from
-/// `rng`, when the category has glass and the draw says so. Returns whether
-/// any panel became glass.
-pub(super) fn glaze(category: Category, p: &mut Parts, rng: &mut R) -> bool {
+/// Glazes the panels of `p`, with probability `share`, with one glass whose
+/// tint and opacity are drawn from `rng`, when the category has glass.
+/// Returns whether any panel became glass.
+pub(super) fn glaze(category: Category, p: &mut Parts, rng: &mut R, share: f64) -> bool {
     let Some(may_hold) = glazed_panels(category) else {
         return false;
     };
-    if !rng.random_bool(GLASS_SHARE) {
+    if share <= 0.0 || !rng.random_bool(share.min(1.0)) {
         return false;
     }
     // Clear to smoked: a pale grey with a faint hue, seen through at 20-60%.

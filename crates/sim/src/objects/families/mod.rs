@@ -10,8 +10,8 @@ mod parts;
 mod small;
 mod variants;
 
-use super::Category;
 use super::builder::Parts;
+use super::{Category, GlassDraw};
 use parts::{R, u};
 use rand::Rng;
 
@@ -19,7 +19,12 @@ use rand::Rng;
 /// of the mechanisms in `variants` instead of the category's recipe.
 const VARIANT_SHARE: f64 = 0.4;
 
-pub(crate) fn build(category: Category, rng: &mut R, test_instance: bool) -> Parts {
+pub(crate) fn build(
+    category: Category,
+    rng: &mut R,
+    test_instance: bool,
+    glass: GlassDraw,
+) -> Parts {
     let mut p = Parts::default();
     // The variant draw has its own stream: an instance that keeps its recipe
     // is the same object it was before the variants existed, and held-out
@@ -61,8 +66,11 @@ pub(crate) fn build(category: Category, rng: &mut R, test_instance: bool) -> Par
         Category::Bucket => small::bucket(&mut p, rng),
         Category::Door => furniture::door(&mut p, rng),
     }
-    if !test_instance {
-        glass::glaze(category, &mut p, &mut glass_rng);
-    }
+    let glass_share = match glass {
+        GlassDraw::Training if !test_instance => glass::GLASS_SHARE,
+        GlassDraw::All => 1.0,
+        _ => 0.0,
+    };
+    glass::glaze(category, &mut p, &mut glass_rng, glass_share);
     p
 }
