@@ -7,12 +7,12 @@
     clippy::indexing_slicing,
     reason = "tests fail by panicking"
 )]
+mod common;
+
 use umpnet_sim::camera::Camera;
 use umpnet_sim::math::{Mat4, Pose3, Vec3};
 use umpnet_sim::mesh::TriMesh;
-use umpnet_sim::render::{
-    Frame, RenderMesh, RendererKind, Segment, create_renderer, gpu_available, plane_mesh,
-};
+use umpnet_sim::render::{Frame, RenderMesh, RendererKind, Segment, create_renderer, plane_mesh};
 
 const BOX: u32 = 1 << 16;
 const NEAR_PANE: u32 = BOX + 1;
@@ -127,13 +127,7 @@ fn an_opaque_material_draws_as_before_and_a_clear_one_shows_only_what_is_behind(
 
 #[test]
 fn wgpu_draws_glass_as_the_cpu_ray_caster_does() {
-    if !gpu_available() {
-        assert!(
-            std::env::var_os("UMPNET_REQUIRE_WGPU").is_none()
-                && std::env::var("CI").as_deref() != Ok("true"),
-            "no wgpu adapter, under UMPNET_REQUIRE_WGPU or CI=true (install mesa-vulkan-drivers)"
-        );
-        eprintln!("skipped: no wgpu adapter");
+    if !common::wgpu_present() {
         return;
     }
     // The far pane's triangles come first in the buffer: the result must not

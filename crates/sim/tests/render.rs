@@ -6,6 +6,8 @@
     clippy::indexing_slicing,
     reason = "tests and benchmarks fail by panicking"
 )]
+mod common;
+
 use rand::SeedableRng;
 use umpnet_sim::camera::Camera;
 use umpnet_sim::env::SimEnv;
@@ -31,13 +33,7 @@ fn scene(c: Category, k: u32) -> umpnet_sim::scene::Scene {
 
 #[test]
 fn wgpu_matches_cpu_reference_on_every_category() {
-    if !gpu_available() {
-        assert!(
-            std::env::var_os("UMPNET_REQUIRE_WGPU").is_none()
-                && std::env::var("CI").as_deref() != Ok("true"),
-            "no wgpu adapter, under UMPNET_REQUIRE_WGPU or CI=true (install mesa-vulkan-drivers)"
-        );
-        eprintln!("skipped: no wgpu adapter");
+    if !common::wgpu_present() {
         return;
     }
     let camera = Camera::reference(120, 160);
