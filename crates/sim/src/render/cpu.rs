@@ -36,7 +36,9 @@ impl Renderer for CpuRenderer {
         let mut positions = Vec::new();
         let mut triangles = Vec::new();
         let mut owner = Vec::new();
-        // What glass lets through: the opaque triangles alone.
+        // What glass lets through: the opaque triangles alone, kept only
+        // when the scene has glass.
+        let has_glass = self.meshes.iter().any(|m| m.opacity < 1.0);
         let (mut opaque, mut opaque_owner) = (Vec::new(), Vec::new());
         for (mi, m) in self.meshes.iter().enumerate() {
             let t = part_transforms
@@ -54,7 +56,7 @@ impl Renderer for CpuRenderer {
                     let t = [base + tri[0], base + tri[1], base + tri[2]];
                     triangles.push(t);
                     owner.push(mi);
-                    if m.opacity >= 1.0 {
+                    if has_glass && m.opacity >= 1.0 {
                         opaque.push(t);
                         opaque_owner.push(mi);
                     }
@@ -79,7 +81,6 @@ impl Renderer for CpuRenderer {
             return Ok(frame);
         }
         let ntri = triangles.len() as u32;
-        let has_glass = opaque.len() < triangles.len();
         let bvh_of = |positions, triangles| {
             ParryMesh::new(positions, triangles)
                 .map_err(|e| SimError::Render(format!("building the ray-casting BVH: {e:?}")))
