@@ -163,6 +163,7 @@ pub const PHYSICS: &[&str] = &["reference", "ideal"];
 pub const PROTOCOLS: &[&str] = &["paper", "strict"];
 pub const TASKS: &[&str] = &["exploration|explore", "goal"];
 pub const RENDERERS: &[&str] = &["auto", "wgpu|gpu", "cpu"];
+pub const GLASS_DRAWS: &[&str] = &["training", "all", "none"];
 pub const GRASP_RULES: &[&str] = &[
     "affordance",
     "affordance_times_movable",

@@ -22,7 +22,7 @@ pub enum ObjectsCmd {
         /// Which instances draw glass panels: training (a share of the training instances of
         /// Window, Microwave, Refrigerator and StorageFurniture; the benchmark's objects), all
         /// (every instance of those and of Oven, WashingMachine and Door: a probe) or none.
-        #[arg(long, default_value = "training", value_parser = parse_glass)]
+        #[arg(long, default_value = "training", value_parser = crate::choice::<GlassDraw>(crate::GLASS_DRAWS))]
         glass: GlassDraw,
         /// Write into a folder that is not empty (files of the same instances are replaced).
         #[arg(long)]
@@ -30,10 +30,6 @@ pub enum ObjectsCmd {
     },
     /// List the categories with their split, step budget and joint types.
     List,
-}
-
-fn parse_glass(s: &str) -> Result<GlassDraw, String> {
-    s.parse().map_err(|e: umpnet_sim::SimError| e.to_string())
 }
 
 pub fn run(ctx: &Ctx, cmd: &ObjectsCmd) -> Result<()> {
