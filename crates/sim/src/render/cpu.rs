@@ -10,7 +10,7 @@ use crate::camera::Camera;
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Vec3};
 use rapier3d::parry::query::{Ray, RayCast};
-use rapier3d::parry::shape::TriMesh as ParryMesh;
+use rapier3d::parry::shape::{TriMesh as ParryMesh, Triangle};
 
 /// The built-in renderer: a ray per pixel against the meshes (parry), in
 /// parallel rows; the same frames as the wgpu renderer's, within a pixel on
@@ -38,7 +38,7 @@ impl Renderer for CpuRenderer {
         let mut owner = Vec::new();
         // What glass lets through: the opaque triangles alone, kept only
         // when the scene has glass.
-        let has_glass = self.meshes.iter().any(|m| m.opacity < 1.0);
+        let has_glass = self.meshes.iter().any(RenderMesh::is_glass);
         let (mut opaque, mut opaque_owner) = (Vec::new(), Vec::new());
         for (mi, m) in self.meshes.iter().enumerate() {
             let t = part_transforms
@@ -56,7 +56,7 @@ impl Renderer for CpuRenderer {
                     let t = [base + tri[0], base + tri[1], base + tri[2]];
                     triangles.push(t);
                     owner.push(mi);
-                    if has_glass && m.opacity >= 1.0 {
+                    if has_glass && !m.is_glass() {
                         opaque.push(t);
                         opaque_owner.push(mi);
                     }
@@ -112,17 +112,13 @@ impl Renderer for CpuRenderer {
                 if z < camera.near {
                     continue;
                 }
-                let t = bvh.triangle(tri);
-                let mut n = (t.b - t.a).cross(t.c - t.a).normalize();
-                if n.dot(eye - point) < 0.0 {
-                    n = -n;
-                }
+                let n = facing_normal(&bvh.triangle(tri), point, eye);
                 let m = &self.meshes[owner[tri as usize]];
                 let i = (row * w + col) as usize;
                 frame.depth[i] = z;
                 frame.segmentation[i] = m.segment;
                 frame.normal_in_world[i] = n.to_array();
-                let rgb = if m.opacity < 1.0 {
+                let rgb = if m.is_glass() {
                     let behind = behind_glass
                         .as_ref()
                         .and_then(|b| self.opaque_color(b, &opaque_owner, &ray, camera.far));
@@ -149,12 +145,14 @@ impl CpuRenderer {
     ) -> Option<[u8; 3]> {
         let hit = opaque.cast_local_ray_and_get_normal(ray, far, true)?;
         let m = self.meshes.get(*owner.get(hit.subshape as usize)?)?;
-        let t = opaque.triangle(hit.subshape);
         let point = ray.origin + ray.dir * hit.time_of_impact;
-        let mut n = (t.b - t.a).cross(t.c - t.a).normalize();
-        if n.dot(ray.origin - point) < 0.0 {
-            n = -n;
-        }
+        let n = facing_normal(&opaque.triangle(hit.subshape), point, ray.origin);
         Some(shade(m.color, n))
     }
+}
+
+/// A triangle's geometric normal, turned to face `eye` from `point` on it.
+fn facing_normal(t: &Triangle, point: Vec3, eye: Vec3) -> Vec3 {
+    let n = (t.b - t.a).cross(t.c - t.a).normalize();
+    if n.dot(eye - point) < 0.0 { -n } else { n }
 }

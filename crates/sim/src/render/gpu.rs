@@ -340,8 +340,8 @@ impl Renderer for GpuRenderer {
     fn load(&mut self, meshes: &[RenderMesh]) -> Result<()> {
         let mut verts = Vec::new();
         // Opaque meshes first: glass is drawn over them.
-        let opaque = meshes.iter().filter(|m| m.opacity >= 1.0);
-        let glass = meshes.iter().filter(|m| m.opacity < 1.0);
+        let opaque = meshes.iter().filter(|m| !m.is_glass());
+        let glass = meshes.iter().filter(|m| m.is_glass());
         let mut opaque_vertices = 0;
         for m in opaque.chain(glass) {
             if m.part >= MAX_PARTS {
@@ -362,7 +362,7 @@ impl Renderer for GpuRenderer {
                     });
                 }
             }
-            if m.opacity >= 1.0 {
+            if !m.is_glass() {
                 opaque_vertices = verts.len() as u32;
             }
         }

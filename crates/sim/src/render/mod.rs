@@ -83,6 +83,13 @@ pub struct RenderMesh {
     pub mesh: TriMesh,
 }
 
+impl RenderMesh {
+    /// Whether it is drawn as glass: an [`opacity`](RenderMesh::opacity) below 1.
+    pub fn is_glass(&self) -> bool {
+        self.opacity < 1.0
+    }
+}
+
 /// One rendered frame. Images are row-major, `height` rows of `width` pixels.
 #[derive(Clone, Debug)]
 pub struct Frame {
