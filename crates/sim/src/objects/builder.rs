@@ -56,6 +56,9 @@ impl PartLink {
     }
 }
 
+/// A link's mesh files: (path relative to the URDF, mesh, rgba).
+pub(crate) type LinkFiles = Vec<(String, TriMesh, [f32; 4])>;
+
 pub(crate) struct PartJoint {
     pub kind: JointKind,
     pub parent: usize,
@@ -139,7 +142,7 @@ impl Parts {
     /// Each link's meshes as (file relative to the URDF, mesh, rgba): its
     /// opaque boxes in `original-N.obj` (left out when every box is glass),
     /// then any glass in `glass-N.obj`.
-    pub fn meshes(&self) -> Vec<Vec<(String, TriMesh, [f32; 4])>> {
+    pub fn meshes(&self) -> Vec<LinkFiles> {
         self.links
             .iter()
             .enumerate()
@@ -185,11 +188,11 @@ impl Parts {
     /// inertial-less links of PartNet-Mobility, but with its centre of mass at
     /// the middle of its geometry and the inertia of its bounding box (the
     /// default would put it on the hinge, which makes a small part
-    /// unmovable by the reference's heavy mount).
-    pub fn urdf(&self, name: &str) -> String {
+    /// unmovable by the reference's heavy mount). `files` is [`Parts::meshes`].
+    pub fn urdf(&self, name: &str, files: &[LinkFiles]) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "<?xml version=\"1.0\"?>\n<robot name=\"{name}\">");
-        for (l, files) in self.links.iter().zip(self.meshes()) {
+        for (l, files) in self.links.iter().zip(files) {
             let (lo, hi) = l.mesh().bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
             let size = (hi - lo).max(Vec3::splat(0.005));
             let com = (lo + hi) * 0.5;
@@ -214,7 +217,7 @@ impl Parts {
                     alpha(*a)
                 );
             }
-            for (file, ..) in &files {
+            for (file, ..) in files {
                 let _ = writeln!(
                     s,
                     "    <collision>\n      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <geometry><mesh filename=\"{file}\"/></geometry>\n    </collision>"

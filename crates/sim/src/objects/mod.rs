@@ -235,8 +235,9 @@ pub fn generate_with(
     let mut parts = families::build(category, &mut rng, test, glass);
     // The families are designed at scene size; files are at PartNet's.
     parts.scale(1.0 / PARTNET_SCALE);
-    let meshes = parts
-        .meshes()
+    let files = parts.meshes();
+    let urdf = parts.urdf(&format!("{}_{index}", category.name()), &files);
+    let meshes = files
         .into_iter()
         .flatten()
         .map(|(file, mesh, _)| (file, mesh))
@@ -244,7 +245,7 @@ pub fn generate_with(
     GeneratedObject {
         category,
         index,
-        urdf: parts.urdf(&format!("{}_{index}", category.name())),
+        urdf,
         meshes,
     }
 }
