@@ -16,6 +16,15 @@ pub const MAX_TRIANGLES: usize = 4_000_000;
 /// (2M x 72 bytes, under wgpu's default 256 MiB), and bounded memory.
 pub const MAX_TOTAL_TRIANGLES: usize = 2_000_000;
 
+/// What an OBJ's MTL file says about the first material the OBJ uses.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ObjMaterial {
+    /// The diffuse colour, `Kd`, each channel in [0, 1].
+    pub color: Option<[f32; 3]>,
+    /// The dissolve, `d`, in [0, 1]: 1 is opaque, below 1 is glass.
+    pub opacity: Option<f32>,
+}
+
 /// An indexed triangle mesh in some frame named by its owner.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriMesh {
@@ -186,11 +195,12 @@ impl TriMesh {
         Self::parse_obj(&text, path)
     }
 
-    /// The diffuse colour (`Kd`) of the first material an OBJ file uses, from
-    /// the MTL file it names, as PyBullet's `URDF_USE_MATERIAL_COLORS_FROM_MTL`
-    /// reads it. None when the OBJ names no material or the MTL cannot be
-    /// read: colours are decoration, and the URDF's colour stands in.
-    pub fn obj_material_color(path: &Path) -> Option<[f32; 3]> {
+    /// The first material an OBJ file uses, from the MTL file it names: its
+    /// diffuse colour (`Kd`), as PyBullet's `URDF_USE_MATERIAL_COLORS_FROM_MTL`
+    /// reads it, and its dissolve (`d`). None when the OBJ names no material
+    /// or the MTL cannot be read: looks are decoration, and the URDF's
+    /// material stands in.
+    pub fn obj_material(path: &Path) -> Option<ObjMaterial> {
         let text = crate::fsio::read_text(path, MAX_OBJ_BYTES).ok()?;
         let mut library = None;
         let mut material = None;
@@ -220,22 +230,35 @@ impl TriMesh {
         let mtl = crate::fsio::read_text(&mtl_path, MAX_MTL_BYTES).ok()?;
         let material = material?;
         let mut current = false;
+        let mut found = ObjMaterial::default();
         for line in mtl.lines() {
             let mut it = line.split_whitespace();
-            match it.next() {
-                Some("newmtl") => current = it.next() == Some(material.as_str()),
-                Some("Kd") if current => {
-                    let rgb: Vec<f32> = it.filter_map(|t| t.parse().ok()).collect();
-                    if let [r, g, b] = rgb[..]
-                        && [r, g, b].iter().all(|c| c.is_finite())
-                    {
-                        return Some([r, g, b].map(|c| c.clamp(0.0, 1.0)));
-                    }
+            let keyword = it.next();
+            if keyword == Some("newmtl") {
+                if current {
+                    break;
+                }
+                current = it.next() == Some(material.as_str());
+                continue;
+            }
+            if !current {
+                continue;
+            }
+            let numbers: Vec<f32> = it.filter_map(|t| t.parse().ok()).collect();
+            let finite = numbers.iter().all(|c| c.is_finite());
+            match (keyword, &numbers[..]) {
+                (Some("Kd"), &[r, g, b]) if finite && found.color.is_none() => {
+                    found.color = Some([r, g, b].map(|c| c.clamp(0.0, 1.0)));
+                }
+                // `Tr` is left alone: exporters disagree on which way it runs,
+                // and opaque is the safe reading.
+                (Some("d"), &[d]) if finite && found.opacity.is_none() => {
+                    found.opacity = Some(d.clamp(0.0, 1.0));
                 }
                 _ => {}
             }
         }
-        None
+        Some(found)
     }
 
     /// A Wavefront OBJ's triangles (polygons fanned), errors naming `path` and the line.

@@ -3,7 +3,7 @@
 use super::{MAX_COORDINATE, MAX_MASS, MIN_MASS, MeshSource, quoted, urdf_err};
 use crate::error::Result;
 use crate::math::{Mat3, Pose3, Quat, Vec3};
-use crate::mesh::TriMesh;
+use crate::mesh::{ObjMaterial, TriMesh};
 use crate::model::{JointKind, JointModel, LinkModel, ObjectModel, VisualModel};
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -84,14 +84,16 @@ fn geometry_mesh(
     })
 }
 
-/// A mesh visual's colour from its OBJ's MTL file, as the paper's code loads
-/// PartNet-Mobility (PyBullet's `URDF_USE_MATERIAL_COLORS_FROM_MTL`): it takes
-/// precedence over the URDF's colour.
-fn mtl_color(g: &urdf_rs::Geometry, base_dir: &Path) -> Option<[f32; 3]> {
+/// A mesh visual's material from its OBJ's MTL file. Its colour takes
+/// precedence over the URDF's, as the paper's code loads PartNet-Mobility
+/// (PyBullet's `URDF_USE_MATERIAL_COLORS_FROM_MTL`).
+fn mtl_material(g: &urdf_rs::Geometry, base_dir: &Path) -> ObjMaterial {
     let urdf_rs::Geometry::Mesh { filename, .. } = g else {
-        return None;
+        return ObjMaterial::default();
     };
-    TriMesh::obj_material_color(&mesh_path_in(base_dir, filename)?)
+    mesh_path_in(base_dir, filename)
+        .and_then(|path| TriMesh::obj_material(&path))
+        .unwrap_or_default()
 }
 
 /// Where a mesh reference points, or None when it would leave the object's
@@ -183,12 +185,16 @@ pub(super) fn build_model(
                     ),
                 ));
             }
-            // The MTL's colour wins, as in PyBullet; the alpha is the URDF material's.
+            // The MTL's colour wins, as in PyBullet. The opacity is the URDF
+            // alpha times the MTL's dissolve: each is a file's own word for how
+            // much of what is behind shows through, so a pane is glass whichever
+            // file says so. (PyBullet's renderer draws neither.)
             let [r, g, b, alpha] = material_rgba(&v.material, &named_colors);
+            let mtl = mtl_material(&v.geometry, base_dir);
             visuals.push(VisualModel {
                 mesh_in_link: mesh,
-                color: mtl_color(&v.geometry, base_dir).unwrap_or([r, g, b]),
-                opacity: alpha,
+                color: mtl.color.unwrap_or([r, g, b]),
+                opacity: alpha * mtl.opacity.unwrap_or(1.0),
             });
         }
         let (mass, com, inertia, derived) = if with_inertial.contains(&l.name) {

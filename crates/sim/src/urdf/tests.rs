@@ -86,6 +86,15 @@ fn a_visual_without_material_is_white_as_in_pybullet_not_the_floors_grey() {
     }
 }
 
+/// Each visual of the first link as (opacity, colour).
+fn looks_of_base(m: &crate::model::ObjectModel) -> Vec<(f32, [f32; 3])> {
+    m.links[0]
+        .visuals
+        .iter()
+        .map(|v| (v.opacity, v.color))
+        .collect()
+}
+
 #[test]
 fn a_material_alpha_below_one_is_glass_whether_given_inline_or_by_name() {
     let body = r#"<material name="tinted"><color rgba="0.6 0.8 0.9 0.35"/></material>
@@ -98,13 +107,8 @@ fn a_material_alpha_below_one_is_glass_whether_given_inline_or_by_name() {
             <material name="solid"><color rgba="0.1 0.2 0.3 1"/></material></visual>
         </link>"#;
     let m = parse_urdf(&wrap(body), Path::new("obj/mobility.urdf")).unwrap();
-    let got: Vec<(f32, [f32; 3])> = m.links[0]
-        .visuals
-        .iter()
-        .map(|v| (v.opacity, v.color))
-        .collect();
     assert_eq!(
-        got,
+        looks_of_base(&m),
         [
             (1.0, [1.0, 1.0, 1.0]),
             (0.35, [0.6, 0.8, 0.9]),
@@ -118,6 +122,61 @@ fn a_material_alpha_below_one_is_glass_whether_given_inline_or_by_name() {
         opacities,
         [1.0, 0.35, 0.5, 1.0, 1.0, 1.0],
         "visuals, floor, gripper"
+    );
+}
+
+#[test]
+fn an_mtl_dissolve_below_one_is_glass_and_multiplies_the_urdf_alpha() {
+    let dir = tempfile::tempdir().unwrap();
+    let objs = dir.path().join("textured_objs");
+    std::fs::create_dir_all(&objs).unwrap();
+    let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    // Materials in one library: the dissolve read is the used material's own,
+    // its first `d`; `Tr` is not read (exporters disagree on its sense).
+    std::fs::write(
+        objs.join("looks.mtl"),
+        "newmtl pane\nKd 0.6 0.8 0.9\nd 0.4\nd 0.9\n\
+         newmtl solid\nKd 0.5 0.5 0.5\nd 1\n\
+         newmtl tr_only\nKd 0.5 0.5 0.5\nTr 0.8\n\
+         newmtl odd\nKd 0.5 0.5 0.5\nd 7\n\
+         newmtl after\nd 0.1\n",
+    )
+    .unwrap();
+    for name in ["pane", "solid", "tr_only", "odd"] {
+        std::fs::write(
+            objs.join(format!("{name}.obj")),
+            format!("mtllib looks.mtl\nusemtl {name}\n{tri}"),
+        )
+        .unwrap();
+    }
+    let visual = |obj: &str, alpha: &str| {
+        format!(
+            r#"<visual><geometry><mesh filename="textured_objs/{obj}.obj"/></geometry>
+               <material name="m{obj}{alpha}"><color rgba="0 1 0 {alpha}"/></material></visual>"#
+        )
+    };
+    let urdf = dir.path().join("mobility.urdf");
+    std::fs::write(
+        &urdf,
+        wrap(&format!(
+            r#"<link name="base">{}{}{}{}{}</link>"#,
+            visual("pane", "1"),
+            visual("pane", "0.5"),
+            visual("solid", "0.5"),
+            visual("tr_only", "1"),
+            visual("odd", "1"),
+        )),
+    )
+    .unwrap();
+    assert_eq!(
+        looks_of_base(&load_urdf(&urdf).unwrap()),
+        [
+            (0.4, [0.6, 0.8, 0.9]),
+            (0.2, [0.6, 0.8, 0.9]),
+            (0.5, [0.5, 0.5, 0.5]),
+            (1.0, [0.5, 0.5, 0.5]),
+            (1.0, [0.5, 0.5, 0.5]),
+        ]
     );
 }
 
