@@ -305,6 +305,36 @@ def test_objects_generate_draws_glass_as_asked_and_the_default_keeps_the_benchma
     assert p.returncode == 2 and "[possible values: training, all, none]" in p.stderr, p.stderr
 
 
+def test_a_camera_that_reads_through_glass_renders_and_evaluates_what_is_behind_the_panes(tmp_path):
+    run("objects", "generate", "--out", str(tmp_path / "objs"), "--per-category", "1",
+        "--categories", "Window", "--glass", "all")  # fmt: skip
+    window = tmp_path / "objs" / "Window" / "0"
+    frames = {}
+    for reading in ("surface", "through"):
+        out = tmp_path / reading
+        run("render", "--object", str(window / "mobility.urdf"), "--resolution", "96x128",
+            "--renderer", "cpu", "--glass-depth", reading, "--out", str(out))  # fmt: skip
+        cam = json.loads((out / "camera.json").read_text())
+        assert cam["glass_depth"] == reading
+        frames[reading] = (np.asarray(Image.open(out / "color.png")), np.load(out / "depth.npy"))
+    (rgb_s, depth_s), (rgb_t, depth_t) = frames["surface"], frames["through"]
+    assert np.array_equal(rgb_s, rgb_t), "the colour image shows the glass either way"
+    # Every pane of a glazed window is glass: through them the camera reads farther.
+    farther = depth_t > depth_s + 0.01
+    assert farther.sum() > 50 and not (depth_t < depth_s - 1e-4).any()
+    # An evaluation records the reading; the default's run info does not name it.
+    (tmp_path / "set").mkdir()
+    (tmp_path / "set" / "window").symlink_to(window)
+    for reading in ("surface", "through"):
+        out = tmp_path / f"eval-{reading}"
+        run("eval", "--objects", str(tmp_path / "set"), "--episodes-per-category", "1", "--policies", "random",
+            "--renderer", "cpu", "--glass-depth", reading, "--out", str(out))  # fmt: skip
+        info = json.loads((out / "results.json").read_text())["summary"]
+        assert info.get("glass_depth") == (None if reading == "surface" else "through"), info
+    p = run("render", "--category", "Door", "--glass-depth", "clear", "--out", str(tmp_path / "bad"), check=False)
+    assert p.returncode == 2 and "[possible values: surface, through]" in p.stderr, p.stderr
+
+
 def test_objects_generate_layout_and_split(tmp_path):
     run("objects", "generate", "--out", str(tmp_path), "--per-category", "5", "--categories", "Door,Laptop")
     split = json.loads((tmp_path / "split.json").read_text())

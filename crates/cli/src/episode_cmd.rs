@@ -43,6 +43,8 @@ pub struct EpisodeArgs {
     /// camera [default: 240x320]; a learned policy sees its model's input.
     #[arg(long, value_parser = crate::parse_resolution)]
     pub resolution: Option<(u32, u32)>,
+    #[command(flatten)]
+    pub sensor: crate::SensorArgs,
     /// Renderer: wgpu (a GPU, or Vulkan's CPU driver), cpu (built in), or auto
     /// (wgpu when an adapter exists, else cpu, with a notice).
     #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
@@ -79,7 +81,7 @@ pub fn run(ctx: &Ctx, a: &EpisodeArgs, task: Task) -> Result<()> {
     let budget = a
         .steps
         .unwrap_or_else(|| a.protocol.budget(task, scene.category));
-    let camera = Camera::reference(resolution.0, resolution.1);
+    let camera = a.sensor.camera(resolution);
     let mut recorder = match &a.rrd {
         Some(path) => Some(crate::rrd::Recorder::create(
             path,

@@ -41,6 +41,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 use rand::SeedableRng;
 use std::path::PathBuf;
+use umpnet_sim::camera::{Camera, GlassDepth};
 use umpnet_sim::objects::{Category, InstanceSplit, nth_instance};
 use umpnet_sim::physics::PhysicsProfile;
 use umpnet_sim::scene::{ObjectSource, Scene, Task};
@@ -164,6 +165,28 @@ pub const PROTOCOLS: &[&str] = &["paper", "strict"];
 pub const TASKS: &[&str] = &["exploration|explore", "goal"];
 pub const RENDERERS: &[&str] = &["auto", "wgpu|gpu", "cpu"];
 pub const GLASS_DRAWS: &[&str] = &["training", "all", "none"];
+pub const GLASS_DEPTHS: &[&str] = &["surface", "through"];
+
+/// What the camera's depth sensor does, beside the image size.
+#[derive(clap::Args, Clone, Copy)]
+pub struct SensorArgs {
+    /// What depth, segmentation and normals read where the camera looks
+    /// through glass: surface (the pane itself) or through (what is behind
+    /// it, as active-stereo and time-of-flight cameras often read clear
+    /// glass). The colour image shows the glass either way.
+    #[arg(long, default_value = "surface", value_parser = crate::choice::<GlassDepth>(crate::GLASS_DEPTHS))]
+    pub glass_depth: GlassDepth,
+}
+
+impl SensorArgs {
+    /// The reference camera at (height, width), with this sensor.
+    pub fn camera(self, (height, width): (u32, u32)) -> Camera {
+        Camera {
+            glass_depth: self.glass_depth,
+            ..Camera::reference(height, width)
+        }
+    }
+}
 pub const GRASP_RULES: &[&str] = &[
     "affordance",
     "affordance_times_movable",

@@ -11,6 +11,8 @@ pub struct RenderArgs {
     /// Image size as HEIGHTxWIDTH (rows x columns), e.g. 480x640.
     #[arg(long, default_value = "480x640", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
+    #[command(flatten)]
+    pub sensor: crate::SensorArgs,
     /// Renderer: wgpu (a GPU, or Vulkan's CPU driver), cpu (built in), or auto
     /// (wgpu when an adapter exists, else cpu, with a notice).
     #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
@@ -23,7 +25,7 @@ pub struct RenderArgs {
 
 pub fn run(ctx: &Ctx, a: &RenderArgs) -> Result<()> {
     let scene = a.object.scene(umpnet_sim::scene::Task::Exploration)?;
-    let camera = umpnet_sim::camera::Camera::reference(a.resolution.0, a.resolution.1);
+    let camera = a.sensor.camera(a.resolution);
     let mut env = SimEnv::new(scene.clone(), camera.clone(), create_renderer(a.renderer)?)?;
     let f = env.render()?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
@@ -39,7 +41,8 @@ pub fn run(ctx: &Ctx, a: &RenderArgs) -> Result<()> {
         "width": f.width, "height": f.height,
         "intrinsics": {"fx": f.intrinsics.fx, "fy": f.intrinsics.fy, "cx": f.intrinsics.cx, "cy": f.intrinsics.cy},
         "world_from_camera": f.world_from_camera.to_mat4().transpose().to_cols_array_2d(),
-        "depth_range_m": [lo, hi], "renderer": env.renderer_name(), "scene": scene,
+        "depth_range_m": [lo, hi], "glass_depth": camera.glass_depth,
+        "renderer": env.renderer_name(), "scene": scene,
     });
     umpnet_sim::fsio::write_atomic(
         &a.out.join("camera.json"),

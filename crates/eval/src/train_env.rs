@@ -12,7 +12,7 @@ use ndarray::Array3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use umpnet_policy::build_observation_into;
-use umpnet_sim::camera::Camera;
+use umpnet_sim::camera::{Camera, GlassDepth};
 use umpnet_sim::env::{Pick, SimEnv, StepLabels};
 use umpnet_sim::math::Vec3;
 use umpnet_sim::objects::{Category, InstanceSplit, nth_instance};
@@ -42,6 +42,8 @@ pub struct EnvConfig {
     pub object: Option<ObjectSource>,
     /// The physics profile.
     pub physics: PhysicsProfile,
+    /// What the camera's depth reads through glass.
+    pub glass_depth: GlassDepth,
 }
 
 impl EnvConfig {
@@ -62,6 +64,7 @@ impl EnvConfig {
             dataset_seed: 0,
             object: None,
             physics: PhysicsProfile::default(),
+            glass_depth: GlassDepth::Surface,
         }
     }
 }
@@ -326,7 +329,10 @@ impl TrainEnv {
             Some(s) => s,
             None => self.sample_scene()?,
         };
-        let camera = Camera::reference(self.cfg.resolution.0, self.cfg.resolution.1);
+        let camera = Camera {
+            glass_depth: self.cfg.glass_depth,
+            ..Camera::reference(self.cfg.resolution.0, self.cfg.resolution.1)
+        };
         match self.env.as_mut() {
             Some(env) if env.scene().object == scene.object && env.camera() == &camera => {
                 env.reset(scene)?

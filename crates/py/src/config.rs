@@ -34,7 +34,8 @@ fn value_err(e: impl std::fmt::Display) -> PyErr {
 /// with `mobility.urdf`, or the URDF itself, placed by `scale` and `pose`
 /// when given, else by its `object_meta_info.json`), the instance split,
 /// the task, the observation size (height, width), the renderer, the
-/// generated dataset's seed and the physics profile.
+/// generated dataset's seed, the physics profile, and what the depth camera
+/// reads through glass (`surface` or `through`).
 #[pyclass(module = "umpnet", name = "EnvConfig", frozen)]
 pub(crate) struct EnvConfig {
     pub(crate) inner: train_env::EnvConfig,
@@ -43,7 +44,7 @@ pub(crate) struct EnvConfig {
 #[pymethods]
 impl EnvConfig {
     #[new]
-    #[pyo3(signature = (category=None, split="train", resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", scale=None, pose=None))]
+    #[pyo3(signature = (category=None, split="train", resolution=(96, 128), task="exploration", object_dir=None, renderer="auto", dataset_seed=0, physics="reference", scale=None, pose=None, glass_depth="surface"))]
     #[expect(
         clippy::too_many_arguments,
         reason = "Python keyword arguments, each with a default; declared here once for Env and VecEnv"
@@ -59,6 +60,7 @@ impl EnvConfig {
         physics: &str,
         scale: Option<f32>,
         pose: Option<Vec<f32>>,
+        glass_depth: &str,
     ) -> PyResult<Self> {
         let task: Task = task.parse().map_err(value_err)?;
         let split = match split {
@@ -82,6 +84,7 @@ impl EnvConfig {
         cfg.resolution = (height, width);
         cfg.dataset_seed = dataset_seed;
         cfg.renderer = renderer.parse().map_err(value_err)?;
+        cfg.glass_depth = glass_depth.parse().map_err(value_err)?;
         if let Some(names) = category.map(Categories::names) {
             if names.is_empty() {
                 return Err(PyValueError::new_err(
@@ -129,13 +132,14 @@ impl EnvConfig {
             ),
         };
         format!(
-            "EnvConfig({what}, split={:?}, resolution={:?}, task={:?}, renderer={:?}, dataset_seed={}, physics={:?})",
+            "EnvConfig({what}, split={:?}, resolution={:?}, task={:?}, renderer={:?}, dataset_seed={}, physics={:?}, glass_depth={:?})",
             format!("{:?}", c.split).to_lowercase(),
             c.resolution,
             format!("{:?}", c.task).to_lowercase(),
             format!("{:?}", c.renderer).to_lowercase(),
             c.dataset_seed,
             format!("{:?}", c.physics).to_lowercase(),
+            c.glass_depth.name(),
         )
     }
 }

@@ -34,6 +34,54 @@ pub struct Camera {
     pub near: f32,
     /// Farthest depth drawn (m).
     pub far: f32,
+    /// What the depth sensor reads where it looks through glass.
+    #[serde(default, skip_serializing_if = "GlassDepth::is_surface")]
+    pub glass_depth: GlassDepth,
+}
+
+/// What a depth camera reads where it looks through glass (a visual with an
+/// opacity below 1). The colour image shows the glass either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GlassDepth {
+    /// The glass surface itself: depth, segmentation and normals are the
+    /// pane's, the exact geometry a simulator knows.
+    #[default]
+    Surface,
+    /// The opaque surface behind it, as an active-stereo or time-of-flight
+    /// camera often reads clear glass: depth, segmentation and normals are
+    /// those of what the glass lets through (background where nothing is),
+    /// so a grasp aimed at a pane lands behind it.
+    Through,
+}
+
+impl std::str::FromStr for GlassDepth {
+    type Err = crate::error::SimError;
+    fn from_str(s: &str) -> crate::error::Result<Self> {
+        match s {
+            "surface" => Ok(GlassDepth::Surface),
+            "through" => Ok(GlassDepth::Through),
+            _ => Err(crate::error::SimError::Other(format!(
+                "unknown glass depth `{s}`; expected surface or through"
+            ))),
+        }
+    }
+}
+
+impl GlassDepth {
+    /// Its name, as `from_str` reads it.
+    pub fn name(self) -> &'static str {
+        match self {
+            GlassDepth::Surface => "surface",
+            GlassDepth::Through => "through",
+        }
+    }
+
+    /// Whether it is the default reading, the pane's own surface (for
+    /// `skip_serializing_if`).
+    pub fn is_surface(&self) -> bool {
+        *self == GlassDepth::Surface
+    }
 }
 
 /// fx, fy, cx, cy in pixels (pixel centres at integer + 0.5).
@@ -61,6 +109,7 @@ impl Camera {
             up: [0.0, 0.0, 1.0],
             near: 0.01,
             far: 10.0,
+            glass_depth: GlassDepth::Surface,
         }
     }
 

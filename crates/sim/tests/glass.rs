@@ -9,7 +9,7 @@
 )]
 mod common;
 
-use umpnet_sim::camera::Camera;
+use umpnet_sim::camera::{Camera, GlassDepth};
 use umpnet_sim::math::{Mat4, Pose3, Vec3};
 use umpnet_sim::mesh::TriMesh;
 use umpnet_sim::render::{Frame, RenderMesh, RendererKind, Segment, create_renderer, plane_mesh};
@@ -53,10 +53,38 @@ fn scene(near: Option<f32>, far: Option<f32>) -> Vec<RenderMesh> {
 }
 
 fn render(kind: RendererKind, meshes: &[RenderMesh]) -> Frame {
+    render_reading(kind, meshes, GlassDepth::Surface)
+}
+
+fn render_reading(kind: RendererKind, meshes: &[RenderMesh], glass_depth: GlassDepth) -> Frame {
     let mut r = create_renderer(kind).unwrap();
     r.load(meshes).unwrap();
-    r.render(&Camera::reference(120, 160), &[Mat4::IDENTITY])
-        .unwrap()
+    let camera = Camera {
+        glass_depth,
+        ..Camera::reference(120, 160)
+    };
+    r.render(&camera, &[Mat4::IDENTITY]).unwrap()
+}
+
+/// A camera that reads through glass: the surface-reading frame's colours,
+/// and the depth, segments and normals of the scene without the panes.
+fn assert_reads_through(kind: RendererKind, meshes: &[RenderMesh]) {
+    let through = render_reading(kind, meshes, GlassDepth::Through);
+    let surface = render_reading(kind, meshes, GlassDepth::Surface);
+    let bare = render_reading(kind, &scene(None, None), GlassDepth::Surface);
+    assert_eq!(
+        through.rgb, surface.rgb,
+        "{kind:?}: the colour shows the glass"
+    );
+    assert_eq!(through.segmentation, bare.segmentation, "{kind:?}");
+    assert_eq!(through.depth, bare.depth, "{kind:?}");
+    assert_eq!(through.normal_in_world, bare.normal_in_world, "{kind:?}");
+    let panes = surface
+        .segmentation
+        .iter()
+        .filter(|&&s| s == NEAR_PANE || s == FAR_PANE)
+        .count();
+    assert!(panes > 1000, "{kind:?}: {panes} pixels see a pane");
 }
 
 fn rgb(f: &Frame, i: usize) -> [f32; 3] {
@@ -153,4 +181,43 @@ fn wgpu_draws_glass_as_the_cpu_ray_caster_does() {
     for &i in &pixels {
         assert!((gpu.depth[i] - cpu.depth[i]).abs() < 1e-3, "pixel {i}");
     }
+}
+
+#[test]
+fn a_camera_that_reads_through_glass_sees_depth_and_segments_behind_it() {
+    let meshes = scene(Some(0.35), Some(0.6));
+    assert_reads_through(RendererKind::Cpu, &meshes);
+    // A pane with nothing behind it within range reads as background.
+    let mut r = create_renderer(RendererKind::Cpu).unwrap();
+    r.load(&[RenderMesh {
+        part: 0,
+        segment: NEAR_PANE,
+        color: [0.6, 0.8, 0.9],
+        opacity: 0.5,
+        mesh: cuboid(Vec3::ZERO, Vec3::new(0.8, 0.8, 0.01)),
+    }])
+    .unwrap();
+    let camera = Camera {
+        glass_depth: GlassDepth::Through,
+        ..Camera::reference(120, 160)
+    };
+    let f = r.render(&camera, &[Mat4::IDENTITY]).unwrap();
+    let tinted = (0..f.depth.len()).filter(|&i| f.rgb[i * 3 + 2] > 0).count();
+    assert!(tinted > 100, "{tinted} pixels show the pane");
+    assert!(f.depth.iter().all(|&d| d == 0.0));
+    assert!(
+        f.segmentation
+            .iter()
+            .all(|&s| s == umpnet_sim::render::SEG_BACKGROUND)
+    );
+}
+
+#[test]
+fn wgpu_reads_through_glass_too() {
+    if !common::wgpu_present() {
+        return;
+    }
+    let mut meshes = scene(Some(0.35), Some(0.6));
+    meshes.swap(2, 3);
+    assert_reads_through(RendererKind::Wgpu, &meshes);
 }

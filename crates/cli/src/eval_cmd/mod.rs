@@ -15,7 +15,6 @@ use std::path::{Path, PathBuf};
 use stream::{EpisodeWriter, RunState};
 use umpnet_eval::Protocol;
 use umpnet_eval::benchmark::{BenchConfig, PolicyFactory, Row, Shard, stream_benchmark};
-use umpnet_sim::camera::Camera;
 use umpnet_sim::objects::Category;
 use umpnet_sim::physics::PhysicsProfile;
 use umpnet_sim::render::{RendererKind, create_renderer};
@@ -84,6 +83,8 @@ pub struct EvalArgs {
     /// sees its package's input resolution. All see the same scenes.
     #[arg(long, default_value = "120x160", value_parser = crate::parse_resolution)]
     pub resolution: (u32, u32),
+    #[command(flatten)]
+    pub sensor: crate::SensorArgs,
     /// Renderer: wgpu (a GPU, or Vulkan's CPU driver), cpu (built in), or auto
     /// (wgpu when an adapter exists, else cpu, with a notice).
     #[arg(long, default_value = "auto", value_parser = crate::choice::<RendererKind>(crate::RENDERERS))]
@@ -214,11 +215,11 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
         episodes_per_category: a.episodes_per_category,
         seed: a.seed,
         dataset_seed: 0,
-        camera: Camera::reference(resolution.0, resolution.1),
+        camera: a.sensor.camera(resolution),
         policy_cameras: resolved
             .resolutions
             .iter()
-            .map(|(n, (h, w))| (n.clone(), Camera::reference(*h, *w)))
+            .map(|(n, size)| (n.clone(), a.sensor.camera(*size)))
             .collect(),
         renderer,
         steps: None,
@@ -252,6 +253,7 @@ fn run_eval(ctx: &Ctx, a: &EvalArgs) -> Result<()> {
             .sampler()
             .map(|s| format!("{} {}", s.name(), s.samples())),
         mirror_average: a.learned.mirror_average,
+        glass_depth: a.sensor.glass_depth,
     };
     if let Some(dir) = &a.out
         && !a.force

@@ -58,6 +58,13 @@ pub struct RunInfo {
     /// the mirrored scene's.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub mirror_average: bool,
+    /// `--glass-depth`: what every camera's depth read through glass, when
+    /// not the pane's own surface.
+    #[serde(
+        default,
+        skip_serializing_if = "umpnet_sim::camera::GlassDepth::is_surface"
+    )]
+    pub glass_depth: umpnet_sim::camera::GlassDepth,
 }
 
 /// The PartNet-Mobility folder a run's categories were scored on: the

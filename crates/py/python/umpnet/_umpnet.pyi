@@ -24,10 +24,11 @@ class EnvConfig:
         physics: str = "reference",
         scale: float | None = None,
         pose: Sequence[float] | None = None,
+        glass_depth: str = "surface",
     ) -> None: ...
 
 # `**options` are EnvConfig's keyword arguments (split, resolution, task,
-# object_dir, renderer, dataset_seed, physics, scale, pose).
+# object_dir, renderer, dataset_seed, physics, scale, pose, glass_depth).
 class Env:
     def __init__(
         self,

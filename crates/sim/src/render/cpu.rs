@@ -6,7 +6,7 @@
     reason = "pixel and triangle indices are bounded by the buffers this renderer allocated"
 )]
 use super::{Frame, RenderMesh, Renderer, SEG_BACKGROUND, shade, shade_glass};
-use crate::camera::Camera;
+use crate::camera::{Camera, GlassDepth};
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Vec3};
 use rapier3d::parry::query::{Ray, RayCast};
@@ -32,37 +32,14 @@ impl Renderer for CpuRenderer {
 
     fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame> {
         let (w, h) = super::check_resolution(camera)?;
-        // Triangles in world frame, each remembering its mesh.
-        let mut positions = Vec::new();
-        let mut triangles = Vec::new();
-        let mut owner = Vec::new();
-        // What glass lets through: the opaque triangles alone, kept only
-        // when the scene has glass.
+        let WorldTriangles {
+            positions,
+            triangles,
+            owner,
+            opaque,
+            opaque_owner,
+        } = self.world_triangles(part_transforms);
         let has_glass = self.meshes.iter().any(RenderMesh::is_glass);
-        let (mut opaque, mut opaque_owner) = (Vec::new(), Vec::new());
-        for (mi, m) in self.meshes.iter().enumerate() {
-            let t = part_transforms
-                .get(m.part)
-                .copied()
-                .unwrap_or(Mat4::IDENTITY);
-            if t.determinant().abs() < 1e-9 {
-                continue; // hidden part
-            }
-            let base = positions.len() as u32;
-            positions.extend(m.mesh.positions.iter().map(|p| t.transform_point3(*p)));
-            for tri in &m.mesh.triangles {
-                let [a, b, c] = tri.map(|i| positions[(base + i) as usize]);
-                if (b - a).cross(c - a).length_squared() > 1e-14 {
-                    let t = [base + tri[0], base + tri[1], base + tri[2]];
-                    triangles.push(t);
-                    owner.push(mi);
-                    if has_glass && !m.is_glass() {
-                        opaque.push(t);
-                        opaque_owner.push(mi);
-                    }
-                }
-            }
-        }
         let k = camera.intrinsics();
         let world_from_camera = camera.world_from_camera();
         let eye = Vec3::from(camera.eye);
@@ -115,39 +92,117 @@ impl Renderer for CpuRenderer {
                 let n = facing_normal(&bvh.triangle(tri), point, eye);
                 let m = &self.meshes[owner[tri as usize]];
                 let i = (row * w + col) as usize;
-                frame.depth[i] = z;
-                frame.segmentation[i] = m.segment;
-                frame.normal_in_world[i] = n.to_array();
-                let rgb = if m.is_glass() {
-                    let behind = behind_glass
-                        .as_ref()
-                        .and_then(|b| self.opaque_color(b, &opaque_owner, &ray, camera.far));
-                    shade_glass(m.color, n, m.opacity, behind.unwrap_or([0; 3]))
-                } else {
-                    shade(m.color, n)
-                };
+                if !m.is_glass() {
+                    frame.depth[i] = z;
+                    frame.segmentation[i] = m.segment;
+                    frame.normal_in_world[i] = n.to_array();
+                    frame.rgb[i * 3..i * 3 + 3].copy_from_slice(&shade(m.color, n));
+                    continue;
+                }
+                let behind = behind_glass
+                    .as_ref()
+                    .and_then(|b| self.opaque_hit(b, &opaque_owner, &ray, camera.far));
+                let rgb = shade_glass(
+                    m.color,
+                    n,
+                    m.opacity,
+                    behind.as_ref().map_or([0; 3], |b| b.rgb),
+                );
                 frame.rgb[i * 3..i * 3 + 3].copy_from_slice(&rgb);
+                match camera.glass_depth {
+                    GlassDepth::Surface => {
+                        frame.depth[i] = z;
+                        frame.segmentation[i] = m.segment;
+                        frame.normal_in_world[i] = n.to_array();
+                    }
+                    GlassDepth::Through => {
+                        if let Some(b) = behind {
+                            frame.depth[i] = (b.point - eye).dot(forward);
+                            frame.segmentation[i] = b.segment;
+                            frame.normal_in_world[i] = b.normal.to_array();
+                        }
+                    }
+                }
             }
         }
         Ok(frame)
     }
 }
 
+/// A frame's triangles in world frame, each remembering its mesh; and, in a
+/// scene with glass, the opaque ones alone (what glass lets through).
+struct WorldTriangles {
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    owner: Vec<usize>,
+    opaque: Vec<[u32; 3]>,
+    opaque_owner: Vec<usize>,
+}
+
+/// The nearest opaque surface behind glass along a ray.
+struct OpaqueHit {
+    point: Vec3,
+    normal: Vec3,
+    segment: u32,
+    rgb: [u8; 3],
+}
+
 impl CpuRenderer {
-    /// The shaded colour of the nearest opaque surface along `ray`, from
-    /// the BVH of the opaque triangles and each one's mesh.
-    fn opaque_color(
+    fn world_triangles(&self, part_transforms: &[Mat4]) -> WorldTriangles {
+        let mut out = WorldTriangles {
+            positions: Vec::new(),
+            triangles: Vec::new(),
+            owner: Vec::new(),
+            opaque: Vec::new(),
+            opaque_owner: Vec::new(),
+        };
+        let has_glass = self.meshes.iter().any(RenderMesh::is_glass);
+        for (mi, m) in self.meshes.iter().enumerate() {
+            let t = part_transforms
+                .get(m.part)
+                .copied()
+                .unwrap_or(Mat4::IDENTITY);
+            if t.determinant().abs() < 1e-9 {
+                continue; // hidden part
+            }
+            let positions = &mut out.positions;
+            let base = positions.len() as u32;
+            positions.extend(m.mesh.positions.iter().map(|p| t.transform_point3(*p)));
+            for tri in &m.mesh.triangles {
+                let [a, b, c] = tri.map(|i| positions[(base + i) as usize]);
+                if (b - a).cross(c - a).length_squared() > 1e-14 {
+                    let t = [base + tri[0], base + tri[1], base + tri[2]];
+                    out.triangles.push(t);
+                    out.owner.push(mi);
+                    if has_glass && !m.is_glass() {
+                        out.opaque.push(t);
+                        out.opaque_owner.push(mi);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The nearest opaque surface along `ray`, from the BVH of the opaque
+    /// triangles and each one's mesh.
+    fn opaque_hit(
         &self,
         opaque: &ParryMesh,
         owner: &[usize],
         ray: &Ray,
         far: f32,
-    ) -> Option<[u8; 3]> {
+    ) -> Option<OpaqueHit> {
         let hit = opaque.cast_local_ray_and_get_normal(ray, far, true)?;
         let m = self.meshes.get(*owner.get(hit.subshape as usize)?)?;
         let point = ray.origin + ray.dir * hit.time_of_impact;
-        let n = facing_normal(&opaque.triangle(hit.subshape), point, ray.origin);
-        Some(shade(m.color, n))
+        let normal = facing_normal(&opaque.triangle(hit.subshape), point, ray.origin);
+        Some(OpaqueHit {
+            point,
+            normal,
+            segment: m.segment,
+            rgb: shade(m.color, normal),
+        })
     }
 }
 

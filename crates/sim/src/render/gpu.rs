@@ -6,7 +6,7 @@
     reason = "buffers are sized from the frame and mesh sizes this renderer allocated"
 )]
 use super::{Frame, RenderMesh, Renderer};
-use crate::camera::Camera;
+use crate::camera::{Camera, GlassDepth};
 use crate::error::{Result, SimError};
 use crate::math::{Mat4, Vec3};
 use rayon::prelude::*;
@@ -23,8 +23,9 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    /// Opaque meshes, glass depth, glass colour (see `pipelines`).
-    pipelines: [wgpu::RenderPipeline; 3],
+    /// Opaque meshes, glass depth, glass colour with the glass's data, glass
+    /// colour alone (see `pipelines`).
+    pipelines: [wgpu::RenderPipeline; 4],
     layout: wgpu::BindGroupLayout,
     adapter_name: String,
     /// Serialises all use of the device.
@@ -100,12 +101,12 @@ fn init() -> std::result::Result<Gpu, String> {
     })
 }
 
-/// The opaque pipeline, then the two that draw glass over it.
+/// The opaque pipeline, then those that draw glass over it.
 fn pipelines(
     device: &wgpu::Device,
     shader: &wgpu::ShaderModule,
     pipeline_layout: &wgpu::PipelineLayout,
-) -> [wgpu::RenderPipeline; 3] {
+) -> [wgpu::RenderPipeline; 4] {
     // Opaque meshes; then glass in two draws: its nearest depth first (no
     // colour), then its colour blended where the depth is that nearest
     // glass's, so one layer of glass shows whatever order its triangles come in.
@@ -168,16 +169,25 @@ fn pipelines(
         true,
         wgpu::CompareFunction::Less,
     );
-    let glass = pipeline(
-        "umpnet glass",
-        &[
-            target(COLOR_FORMAT, Some(wgpu::BlendState::ALPHA_BLENDING), all),
-            target(DATA_FORMAT, None, all),
-        ],
-        false,
-        wgpu::CompareFunction::Equal,
-    );
-    [opaque, glass_depth, glass]
+    let glass = |label, data_writes| {
+        pipeline(
+            label,
+            &[
+                target(COLOR_FORMAT, Some(wgpu::BlendState::ALPHA_BLENDING), all),
+                target(DATA_FORMAT, None, data_writes),
+            ],
+            false,
+            wgpu::CompareFunction::Equal,
+        )
+    };
+    // The data target (depth, segment, normal) is the glass's own, or, for a
+    // camera that reads through glass, left as the opaque pass wrote it.
+    [
+        opaque,
+        glass_depth,
+        glass("umpnet glass", all),
+        glass("umpnet glass colour", none),
+    ]
 }
 
 #[repr(C)]
@@ -493,7 +503,7 @@ impl GpuRenderer {
                 multiview_mask: None,
             });
             if let Some(v) = &vertices {
-                draw(&mut pass, gpu, v, &bind_group);
+                draw(&mut pass, gpu, v, &bind_group, camera.glass_depth);
             }
         }
         let copy =
@@ -580,8 +590,18 @@ impl GpuRenderer {
 }
 
 /// Draws the opaque vertices, then the glass over them.
-fn draw(pass: &mut wgpu::RenderPass<'_>, gpu: &Gpu, v: &Vertices, bind_group: &wgpu::BindGroup) {
-    let [opaque, glass_depth, glass] = &gpu.pipelines;
+fn draw(
+    pass: &mut wgpu::RenderPass<'_>,
+    gpu: &Gpu,
+    v: &Vertices,
+    bind_group: &wgpu::BindGroup,
+    glass_depth_read: GlassDepth,
+) {
+    let [opaque, glass_depth, glass_surface, glass_through] = &gpu.pipelines;
+    let glass = match glass_depth_read {
+        GlassDepth::Surface => glass_surface,
+        GlassDepth::Through => glass_through,
+    };
     pass.set_bind_group(0, bind_group, &[]);
     pass.set_vertex_buffer(0, v.buffer.slice(..));
     pass.set_pipeline(opaque);

@@ -75,9 +75,10 @@ pub struct RenderMesh {
     /// 1 for an opaque surface. Below 1 the mesh is glass: in the colour
     /// image the nearest glass surface in front of the nearest opaque one is
     /// blended over it with this weight (one layer of glass; panes behind it
-    /// do not show), while depth, segmentation and normals report the glass
-    /// surface itself, the exact geometry a simulator knows and a suction cup
-    /// can grasp.
+    /// do not show). Depth, segmentation and normals report the glass surface
+    /// itself, the exact geometry a simulator knows and a suction cup can
+    /// grasp, or what is behind it for a camera that reads through glass
+    /// ([`Camera::glass_depth`](crate::camera::Camera::glass_depth)).
     pub opacity: f32,
     /// The triangles, in the part's frame.
     pub mesh: TriMesh,
