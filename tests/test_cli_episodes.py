@@ -310,18 +310,22 @@ def test_a_camera_that_reads_through_glass_renders_and_evaluates_what_is_behind_
         "--categories", "Window", "--glass", "all")  # fmt: skip
     window = tmp_path / "objs" / "Window" / "0"
     frames = {}
-    for reading in ("surface", "through"):
+    for reading in ("surface", "through", "missing"):
         out = tmp_path / reading
         run("render", "--object", str(window / "mobility.urdf"), "--resolution", "96x128",
             "--renderer", "cpu", "--glass-depth", reading, "--out", str(out))  # fmt: skip
         cam = json.loads((out / "camera.json").read_text())
         assert cam["glass_depth"] == reading
         frames[reading] = (np.asarray(Image.open(out / "color.png")), np.load(out / "depth.npy"))
-    (rgb_s, depth_s), (rgb_t, depth_t) = frames["surface"], frames["through"]
-    assert np.array_equal(rgb_s, rgb_t), "the colour image shows the glass either way"
-    # Every pane of a glazed window is glass: through them the camera reads farther.
+    (rgb_s, depth_s), (rgb_t, depth_t), (rgb_m, depth_m) = (frames[r] for r in ("surface", "through", "missing"))
+    assert np.array_equal(rgb_s, rgb_t) and np.array_equal(rgb_s, rgb_m), "the colour image shows the glass"
+    # Every pane of a glazed window is glass: through them the camera reads
+    # farther, and a camera that reads nothing on glass has holes there.
     farther = depth_t > depth_s + 0.01
     assert farther.sum() > 50 and not (depth_t < depth_s - 1e-4).any()
+    holes = (depth_m == 0) & (depth_s > 0)
+    assert np.array_equal(holes, depth_t != depth_s)  # wherever a pane is the first surface
+    assert np.array_equal(depth_m[~holes], depth_s[~holes])
     # An evaluation records the reading; the default's run info does not name it.
     (tmp_path / "set").mkdir()
     (tmp_path / "set" / "window").symlink_to(window)
@@ -332,7 +336,7 @@ def test_a_camera_that_reads_through_glass_renders_and_evaluates_what_is_behind_
         info = json.loads((out / "results.json").read_text())["summary"]
         assert info.get("glass_depth") == (None if reading == "surface" else "through"), info
     p = run("render", "--category", "Door", "--glass-depth", "clear", "--out", str(tmp_path / "bad"), check=False)
-    assert p.returncode == 2 and "[possible values: surface, through]" in p.stderr, p.stderr
+    assert p.returncode == 2 and "[possible values: surface, through, missing]" in p.stderr, p.stderr
 
 
 def test_objects_generate_layout_and_split(tmp_path):

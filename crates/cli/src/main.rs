@@ -165,15 +165,16 @@ pub const PROTOCOLS: &[&str] = &["paper", "strict"];
 pub const TASKS: &[&str] = &["exploration|explore", "goal"];
 pub const RENDERERS: &[&str] = &["auto", "wgpu|gpu", "cpu"];
 pub const GLASS_DRAWS: &[&str] = &["training", "all", "none"];
-pub const GLASS_DEPTHS: &[&str] = &["surface", "through"];
+pub const GLASS_DEPTHS: &[&str] = &["surface", "through", "missing"];
 
 /// What the camera's depth sensor does, beside the image size.
 #[derive(clap::Args, Clone, Copy)]
 pub struct SensorArgs {
     /// What depth, segmentation and normals read where the camera looks
-    /// through glass: surface (the pane itself) or through (what is behind
-    /// it, as active-stereo and time-of-flight cameras often read clear
-    /// glass). The colour image shows the glass either way.
+    /// through glass: surface (the pane itself), through (what is behind it,
+    /// as active-stereo and time-of-flight cameras often read clear glass) or
+    /// missing (no reading: depth 0, background). The colour image shows the
+    /// glass whatever the reading.
     #[arg(long, default_value = "surface", value_parser = crate::choice::<GlassDepth>(crate::GLASS_DEPTHS))]
     pub glass_depth: GlassDepth,
 }

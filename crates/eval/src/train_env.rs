@@ -42,7 +42,7 @@ pub struct EnvConfig {
     pub object: Option<ObjectSource>,
     /// The physics profile.
     pub physics: PhysicsProfile,
-    /// What the camera's depth reads through glass.
+    /// What the camera's depth reads on glass.
     pub glass_depth: GlassDepth,
 }
 

@@ -35,7 +35,7 @@ fn value_err(e: impl std::fmt::Display) -> PyErr {
 /// when given, else by its `object_meta_info.json`), the instance split,
 /// the task, the observation size (height, width), the renderer, the
 /// generated dataset's seed, the physics profile, and what the depth camera
-/// reads through glass (`surface` or `through`).
+/// reads on glass (`surface`, `through` or `missing`).
 #[pyclass(module = "umpnet", name = "EnvConfig", frozen)]
 pub(crate) struct EnvConfig {
     pub(crate) inner: train_env::EnvConfig,

@@ -266,8 +266,9 @@ def test_one_env_config_serves_env_and_vec_env_and_places_object_files():
 
 def test_glass_depth_through_reads_behind_a_glass_door_and_keeps_its_colour(tmp_path):
     """A camera with glass_depth="through" sees depth and segments behind a
-    glass door (as an active depth camera reads clear glass); the colour
-    image is the same as the default's, which shows the pane."""
+    glass door (as an active depth camera reads clear glass), one with
+    "missing" nothing there; the colour image is the default's, which shows
+    the pane."""
     source = Path(__file__).resolve().parents[3] / "crates" / "sim" / "tests" / "data" / "cabinet.urdf"
     door = '<visual><origin xyz="0.4 -0.01 0"/><geometry><box size="0.8 0.02 0.45"/></geometry>'
     text = source.read_text()
@@ -281,14 +282,19 @@ def test_glass_depth_through_reads_behind_a_glass_door_and_keeps_its_colour(tmp_
         assert f'glass_depth="{glass_depth}"' in repr(config)
         return umpnet.Env(config=config, seed=1, copy=True).reset()
 
-    surface, through = observe("surface"), observe("through")
+    surface, through, missing = observe("surface"), observe("through"), observe("missing")
     rgb = slice(3, 6)  # the image's channels: xyz, rgb, normal, depth
     assert np.array_equal(surface["image"][..., rgb], through["image"][..., rgb])
+    assert np.array_equal(surface["image"][..., rgb], missing["image"][..., rgb])
     seen = surface["segmentation"] == door_segment
     assert seen.sum() > 20, seen.sum()
     assert not (through["segmentation"] == door_segment).any()
     # Behind the door is the cabinet's body, farther from the camera.
     depth_surface, depth_through = surface["image"][..., 9][seen], through["image"][..., 9][seen]
     assert (depth_through > depth_surface).mean() > 0.9
+    # A camera that reads nothing on glass sees nothing where the door is.
+    assert (missing["segmentation"][seen] == 0).all() and (missing["image"][..., 9][seen] == 0).all()
+    assert np.array_equal(missing["image"][..., 9][~seen], surface["image"][..., 9][~seen])
+    assert np.array_equal(missing["segmentation"][~seen], surface["segmentation"][~seen])
     with pytest.raises(ValueError, match="glass depth `clear`"):
         umpnet.EnvConfig(glass_depth="clear")

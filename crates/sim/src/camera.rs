@@ -34,7 +34,7 @@ pub struct Camera {
     pub near: f32,
     /// Farthest depth drawn (m).
     pub far: f32,
-    /// What the depth sensor reads where it looks through glass.
+    /// What the depth sensor reads where it looks at glass.
     #[serde(default, skip_serializing_if = "GlassDepth::is_surface")]
     pub glass_depth: GlassDepth,
 }
@@ -53,6 +53,10 @@ pub enum GlassDepth {
     /// those of what the glass lets through (background where nothing is),
     /// so a grasp aimed at a pane lands behind it.
     Through,
+    /// No reading, as a camera that returns no depth on glass: depth 0,
+    /// background segment and zero normal, like a pixel that sees nothing, so
+    /// a grasp aimed at a pane finds no surface.
+    Missing,
 }
 
 impl std::str::FromStr for GlassDepth {
@@ -61,8 +65,9 @@ impl std::str::FromStr for GlassDepth {
         match s {
             "surface" => Ok(GlassDepth::Surface),
             "through" => Ok(GlassDepth::Through),
+            "missing" => Ok(GlassDepth::Missing),
             _ => Err(crate::error::SimError::Other(format!(
-                "unknown glass depth `{s}`; expected surface or through"
+                "unknown glass depth `{s}`; expected surface, through or missing"
             ))),
         }
     }
@@ -74,6 +79,7 @@ impl GlassDepth {
         match self {
             GlassDepth::Surface => "surface",
             GlassDepth::Through => "through",
+            GlassDepth::Missing => "missing",
         }
     }
 

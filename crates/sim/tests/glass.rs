@@ -212,6 +212,46 @@ fn a_camera_that_reads_through_glass_sees_depth_and_segments_behind_it() {
     );
 }
 
+/// A camera that reads nothing on glass: the surface-reading frame, with
+/// every pixel that sees a pane empty in depth, segments and normals.
+fn assert_reads_nothing_on_glass(kind: RendererKind, meshes: &[RenderMesh]) {
+    let missing = render_reading(kind, meshes, GlassDepth::Missing);
+    let surface = render_reading(kind, meshes, GlassDepth::Surface);
+    assert_eq!(
+        missing.rgb, surface.rgb,
+        "{kind:?}: the colour shows the glass"
+    );
+    let mut panes = 0;
+    for (i, &s) in surface.segmentation.iter().enumerate() {
+        if s == NEAR_PANE || s == FAR_PANE {
+            panes += 1;
+            assert_eq!(missing.depth[i], 0.0, "{kind:?} pixel {i}");
+            assert_eq!(missing.segmentation[i], umpnet_sim::render::SEG_BACKGROUND);
+            assert_eq!(missing.normal_in_world[i], [0.0; 3]);
+        } else {
+            assert_eq!(missing.depth[i], surface.depth[i], "{kind:?} pixel {i}");
+            assert_eq!(missing.segmentation[i], s);
+            assert_eq!(missing.normal_in_world[i], surface.normal_in_world[i]);
+        }
+    }
+    assert!(panes > 1000, "{kind:?}: {panes} pixels see a pane");
+}
+
+#[test]
+fn a_camera_that_reads_nothing_on_glass_leaves_the_panes_empty() {
+    assert_reads_nothing_on_glass(RendererKind::Cpu, &scene(Some(0.35), Some(0.6)));
+}
+
+#[test]
+fn wgpu_reads_nothing_on_glass_too() {
+    if !common::wgpu_present() {
+        return;
+    }
+    let mut meshes = scene(Some(0.35), Some(0.6));
+    meshes.swap(2, 3);
+    assert_reads_nothing_on_glass(RendererKind::Wgpu, &meshes);
+}
+
 #[test]
 fn wgpu_reads_through_glass_too() {
     if !common::wgpu_present() {

@@ -122,6 +122,8 @@ impl Renderer for CpuRenderer {
                             frame.normal_in_world[i] = b.normal.to_array();
                         }
                     }
+                    // The frame's own "nothing here": depth 0, background.
+                    GlassDepth::Missing => {}
                 }
             }
         }

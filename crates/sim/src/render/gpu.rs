@@ -23,9 +23,9 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    /// Opaque meshes, glass depth, glass colour with the glass's data, glass
-    /// colour alone (see `pipelines`).
-    pipelines: [wgpu::RenderPipeline; 4],
+    /// Opaque meshes, glass depth, then glass colour with the glass's data,
+    /// with the opaque surface's data, or with none (see `pipelines`).
+    pipelines: [wgpu::RenderPipeline; 5],
     layout: wgpu::BindGroupLayout,
     adapter_name: String,
     /// Serialises all use of the device.
@@ -106,11 +106,15 @@ fn pipelines(
     device: &wgpu::Device,
     shader: &wgpu::ShaderModule,
     pipeline_layout: &wgpu::PipelineLayout,
-) -> [wgpu::RenderPipeline; 4] {
+) -> [wgpu::RenderPipeline; 5] {
     // Opaque meshes; then glass in two draws: its nearest depth first (no
     // colour), then its colour blended where the depth is that nearest
     // glass's, so one layer of glass shows whatever order its triangles come in.
-    let pipeline = |label, targets: &[Option<wgpu::ColorTargetState>], depth_write, compare| {
+    let pipeline = |label,
+                    fragment: &str,
+                    targets: &[Option<wgpu::ColorTargetState>],
+                    depth_write,
+                    compare| {
         device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some(label),
             layout: Some(pipeline_layout),
@@ -126,7 +130,7 @@ fn pipelines(
             },
             fragment: Some(wgpu::FragmentState {
                 module: shader,
-                entry_point: Some("fs_main"),
+                entry_point: Some(fragment),
                 compilation_options: Default::default(),
                 targets,
             }),
@@ -153,6 +157,7 @@ fn pipelines(
     let (all, none) = (wgpu::ColorWrites::ALL, wgpu::ColorWrites::empty());
     let opaque = pipeline(
         "umpnet opaque",
+        "fs_main",
         &[
             target(COLOR_FORMAT, None, all),
             target(DATA_FORMAT, None, all),
@@ -162,6 +167,7 @@ fn pipelines(
     );
     let glass_depth = pipeline(
         "umpnet glass depth",
+        "fs_main",
         &[
             target(COLOR_FORMAT, None, none),
             target(DATA_FORMAT, None, none),
@@ -169,9 +175,10 @@ fn pipelines(
         true,
         wgpu::CompareFunction::Less,
     );
-    let glass = |label, data_writes| {
+    let glass = |label, fragment, data_writes| {
         pipeline(
             label,
+            fragment,
             &[
                 target(COLOR_FORMAT, Some(wgpu::BlendState::ALPHA_BLENDING), all),
                 target(DATA_FORMAT, None, data_writes),
@@ -180,13 +187,15 @@ fn pipelines(
             wgpu::CompareFunction::Equal,
         )
     };
-    // The data target (depth, segment, normal) is the glass's own, or, for a
-    // camera that reads through glass, left as the opaque pass wrote it.
+    // The data target (depth, segment, normal) is the glass's own; left as
+    // the opaque pass wrote it, for a camera that reads through glass; or
+    // cleared (`fs_no_reading`), for one that reads nothing there.
     [
         opaque,
         glass_depth,
-        glass("umpnet glass", all),
-        glass("umpnet glass colour", none),
+        glass("umpnet glass", "fs_main", all),
+        glass("umpnet glass colour", "fs_main", none),
+        glass("umpnet glass no reading", "fs_no_reading", all),
     ]
 }
 
@@ -597,10 +606,11 @@ fn draw(
     bind_group: &wgpu::BindGroup,
     glass_depth_read: GlassDepth,
 ) {
-    let [opaque, glass_depth, glass_surface, glass_through] = &gpu.pipelines;
+    let [opaque, glass_depth, surface, through, missing] = &gpu.pipelines;
     let glass = match glass_depth_read {
-        GlassDepth::Surface => glass_surface,
-        GlassDepth::Through => glass_through,
+        GlassDepth::Surface => surface,
+        GlassDepth::Through => through,
+        GlassDepth::Missing => missing,
     };
     pass.set_bind_group(0, bind_group, &[]);
     pass.set_vertex_buffer(0, v.buffer.slice(..));

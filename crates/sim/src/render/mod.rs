@@ -77,8 +77,9 @@ pub struct RenderMesh {
     /// blended over it with this weight (one layer of glass; panes behind it
     /// do not show). Depth, segmentation and normals report the glass surface
     /// itself, the exact geometry a simulator knows and a suction cup can
-    /// grasp, or what is behind it for a camera that reads through glass
-    /// ([`Camera::glass_depth`](crate::camera::Camera::glass_depth)).
+    /// grasp; or, for a camera that reads glass otherwise
+    /// ([`Camera::glass_depth`](crate::camera::Camera::glass_depth)), what
+    /// is behind it or nothing.
     pub opacity: f32,
     /// The triangles, in the part's frame.
     pub mesh: TriMesh,

@@ -49,16 +49,35 @@ struct FragOut {
     @location(1) data: vec4<u32>,
 };
 
-@fragment
-fn fs_main(in: VertexOut) -> FragOut {
-    var n = normalize(cross(dpdx(in.world), dpdy(in.world)));
+fn facing_normal(in: VertexOut) -> vec3<f32> {
+    let n = normalize(cross(dpdx(in.world), dpdy(in.world)));
     if (dot(n, camera.eye.xyz - in.world) < 0.0) {
-        n = -n;
+        return -n;
     }
+    return n;
+}
+
+fn shaded(in: VertexOut, n: vec3<f32>) -> vec4<f32> {
     let base = unpack4x8unorm(in.color);
     let k = 0.35 + 0.65 * max(dot(n, camera.light.xyz), 0.0);
+    return vec4<f32>(base.rgb * k, base.a);
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> FragOut {
+    let n = facing_normal(in);
     var out: FragOut;
-    out.color = vec4<f32>(base.rgb * k, base.a);
+    out.color = shaded(in, n);
     out.data = vec4<u32>(bitcast<u32>(in.view_z), in.segment, pack2x16snorm(n.xy), pack2x16snorm(vec2<f32>(n.z, 0.0)));
+    return out;
+}
+
+// Glass seen by a depth camera that reads nothing there: its colour, and
+// the data of a pixel that sees nothing (depth 0, background, no normal).
+@fragment
+fn fs_no_reading(in: VertexOut) -> FragOut {
+    var out: FragOut;
+    out.color = shaded(in, facing_normal(in));
+    out.data = vec4<u32>(0u);
     return out;
 }
