@@ -150,17 +150,24 @@ impl Policy for OraclePolicy {
                 best = Some((score, i));
             }
         }
-        let (_, i) = best.ok_or_else(|| {
-            EvalError::Episode(format!(
-                "the oracle's grasp: no pixel of a movable part of {} is in view of the camera{}",
-                env.model().source.display(),
-                if env.scene().task == Task::Goal {
-                    " (for a goal, of the part the goal moves)"
-                } else {
-                    ""
-                }
-            ))
-        })?;
+        // No pixel of the part reads as such (a depth camera that reads
+        // nothing on its glass): the oracle grasps what it sees, a static
+        // surface, the protocol's wrong grasp, as any policy's would be there.
+        let i = match best {
+            Some((_, i)) => i,
+            None => (0..f.segmentation.len())
+                .find(|&i| {
+                    f.depth[i] > 0.0
+                        && !matches!(Segment::decode(f.segmentation[i]),
+                            Segment::Link { link, .. } if env.joint_moving_link(link).is_some())
+                })
+                .ok_or_else(|| {
+                    EvalError::Episode(format!(
+                        "the oracle's grasp: nothing of {} is in view of the camera",
+                        env.model().source.display(),
+                    ))
+                })?,
+        };
         Ok(((i as u32) / f.width, (i as u32) % f.width))
     }
     fn direction(
