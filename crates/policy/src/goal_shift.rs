@@ -184,7 +184,10 @@ pub const MIN_CHANGED: usize = 5;
 
 /// The points of `a` within [`REACH`] of `near` that `b`'s camera sees empty
 /// space behind: in front of `b`'s surface at their pixel by more than
-/// [`FREE_SPACE_MARGIN`], or where `b` sees nothing.
+/// [`FREE_SPACE_MARGIN`]. A pixel of `b` without depth says nothing: it is a
+/// depth camera's hole (glass, dark or shiny surfaces) as often as open
+/// space, and taking holes for open space reads a glass part's motion
+/// backwards (the points behind where it is now seem to arrive).
 fn vacated(
     a: &ArrayView3<'_, f32>,
     b: &ArrayView3<'_, f32>,
@@ -210,7 +213,7 @@ fn vacated(
                 continue;
             }
             let seen = b[[y as usize, x as usize, 9]];
-            if seen <= 0.0 || z < seen - FREE_SPACE_MARGIN {
+            if seen > 0.0 && z < seen - FREE_SPACE_MARGIN {
                 out.push(p);
             }
         }
@@ -321,6 +324,48 @@ mod tests {
         assert!(back.shift.x < -0.1 && back.shift.z > 0.1, "{back:?}");
         // Nothing changes: nothing to say.
         assert!(change(&scene(0.0, 1.2).view(), &scene(0.0, 1.2).view(), near).is_none());
+    }
+
+    /// The scene with the moving panel of glass, seen by a depth camera
+    /// that reads nothing on it (observations hold zeros there), and a
+    /// static opaque block at depth 1.5 to its left (so that the camera is
+    /// recovered from more than the flat wall).
+    fn glass_panel(panel_x: f32, panel_z: f32) -> Array3<f32> {
+        let mut obs = scene(panel_x, panel_z);
+        for r in 0..48 {
+            for c in 0..64 {
+                let (u, v) = ((c as f32 + 0.5 - CX) / FX, (r as f32 + 0.5 - CY) / FX);
+                let (x, y) = (u * 1.5, v * 1.5);
+                if (x + 0.35).abs() < 0.1 && y.abs() < 0.1 && obs[[r, c, 9]] > 1.5 {
+                    for (k, value) in [(0, x), (1, y), (2, 1.5), (9, 1.5)] {
+                        obs[[r, c, k]] = value;
+                    }
+                }
+            }
+        }
+        for mut px in obs.rows_mut() {
+            if px[9] == panel_z {
+                px.fill(0.0);
+            }
+        }
+        obs
+    }
+
+    #[test]
+    fn holes_in_depth_say_nothing_about_where_the_part_goes() {
+        // The panel pulled toward the camera and to the right, both frames
+        // without depth on it: only the wall is seen, and it does not move.
+        // Holes taken for open space would read the wall behind each hole as
+        // the part, and the shift the wrong way (to the left).
+        let near = Vector3::new(0.0, 0.0, 1.2);
+        let current = glass_panel(0.0, 1.2);
+        let target = glass_panel(0.2, 0.9);
+        assert!(Pinhole::fit(&current.view()).is_some() && Pinhole::fit(&target.view()).is_some());
+        assert_eq!(change(&current.view(), &target.view(), near), None);
+        // With depth on the panel in the goal frame alone, the way is read
+        // from the goal's points: to the right and toward the camera.
+        let c = change(&current.view(), &scene(0.2, 0.9).view(), near);
+        assert!(c.as_ref().is_none_or(|c| c.shift.x > 0.0), "{c:?}");
     }
 
     #[test]
