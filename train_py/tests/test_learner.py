@@ -256,3 +256,18 @@ def test_learner_modes_update_the_same_fp32_weights():
         train.Learner(UMPNet(cfg), cfg, "fp16")
     with pytest.raises(ValueError, match="learner 'fp16'"):
         make_config("smoke", learner="fp16")
+
+
+def test_glass_depth_mix_gives_a_share_of_the_environments_each_misreading():
+    """--glass-depth-mix: round(mix * n) environments misread glass, half
+    through it and half not at all; the rest read the pane. The share is
+    checked like --mirror's."""
+    from umpnet_train.config import glass_depths
+
+    assert glass_depths(4, 0.0) == ["surface"] * 4
+    assert glass_depths(4, 0.5) == ["through", "missing", "surface", "surface"]
+    assert glass_depths(16, 0.25).count("surface") == 12
+    assert glass_depths(3, 1.0) == ["through", "missing", "through"]
+    assert make_config("smoke", glass_depth_mix=0.5).glass_depth_mix == 0.5
+    with pytest.raises(ValueError, match="glass_depth_mix 1.5: expected a share between 0 and 1"):
+        make_config("smoke", glass_depth_mix=1.5)

@@ -59,6 +59,12 @@ class Config:
         "(every pull follows the joint's path)",
         choices=("reference", "ideal"),
     )
+    glass_depth_mix: float = option(
+        0.0,
+        "share of the environments whose depth camera misreads glass, half reading through it and "
+        "half reading nothing there (--glass-depth through and missing), beyond the paper (0: all "
+        "read the pane itself)",
+    )
     labels: str = option(
         "reference",
         "reference: the released code's label thresholds (0.1 rad / 0.05 m, range/3.5) and its "
@@ -236,8 +242,9 @@ def make_config(preset: str = "paper", **overrides) -> Config:
         if choices and f.name in values and values[f.name] not in choices:
             expected = ", ".join(repr(c) for c in choices)
             raise ValueError(f"{f.name} {values[f.name]!r}: expected one of {expected}")
-    if not 0.0 <= float(values.get("mirror", 0.0)) <= 1.0:
-        raise ValueError(f"mirror {values['mirror']}: expected a share between 0 and 1")
+    for share in ("mirror", "glass_depth_mix"):
+        if not 0.0 <= float(values.get(share, 0.0)) <= 1.0:
+            raise ValueError(f"{share} {values[share]}: expected a share between 0 and 1")
     if values.get("inverse_data") and values.get("variant", "umpnet") != "inverse":
         raise ValueError("inverse_data: only the inverse variant collects with another policy's moves")
     cfg_net = values.get("direction_net", "context")
@@ -254,6 +261,13 @@ def make_config(preset: str = "paper", **overrides) -> Config:
     if values.get("dense_labels", 0) < 0:
         raise ValueError(f"dense_labels {values['dense_labels']}: expected 0 (off) or a positive count")
     return Config(**values)
+
+
+def glass_depths(num_envs: int, mix: float) -> list[str]:
+    """Each environment's glass reading for `glass_depth_mix`: the first
+    round(mix * num_envs) alternate through and missing, the rest surface."""
+    misread = round(mix * num_envs)
+    return [("through", "missing")[i % 2] if i < misread else "surface" for i in range(num_envs)]
 
 
 # What a checkpoint written before a field existed was trained with.

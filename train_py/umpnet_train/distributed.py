@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import Config
+from .config import Config, glass_depths
 
 _NEW_STATS = {
     "sim_s": 0.0, "probe_s": 0.0, "positions": 0, "position_success": 0, "steps": 0,
@@ -108,6 +108,7 @@ class Collector:
             resolution=(self.cfg.height, self.cfg.width),
             renderer=self.cfg.renderer,
             physics=self.cfg.physics,
+            glass_depths=glass_depths(num_envs, self.cfg.glass_depth_mix),
         )
 
     def collect(self, weights: dict, epoch: int) -> tuple[list[tuple], dict]:

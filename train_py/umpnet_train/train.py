@@ -40,6 +40,7 @@ from .config import (
     add_config_arguments,
     config_from_checkpoint,
     config_overrides,
+    glass_depths,
     make_config,
     read_config_file,
 )
@@ -450,6 +451,7 @@ def main(argv=None) -> int:
             resolution=(cfg.height, cfg.width),
             renderer=cfg.renderer,
             physics=cfg.physics,
+            glass_depths=glass_depths(cfg.num_envs, cfg.glass_depth_mix),
         )
     replay = Replay(cfg.replay_size, (cfg.height, cfg.width, 10), fields=cfg.aux_fields > 0)
     # Dense states keep one image for K labels: a quarter of the buffer's states.

@@ -16,6 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 use umpnet_eval::train_env::TrainEnv;
+use umpnet_sim::camera::GlassDepth;
 use umpnet_sim::env::StepLabels;
 use umpnet_sim::scene::Scene;
 
@@ -43,11 +44,14 @@ pub(crate) struct VecEnv {
 #[pymethods]
 impl VecEnv {
     /// `VecEnv(n, category=None, seed=0, copy=False, batch_render=True,
-    /// config=None, **options)`: environment i has seed `seed + i`; the
-    /// scenes come from `config` (an `EnvConfig`), or from `category` and
-    /// `options`, `EnvConfig`'s keyword arguments.
+    /// config=None, glass_depths=None, **options)`: environment i has seed
+    /// `seed + i`; the scenes come from `config` (an `EnvConfig`), or from
+    /// `category` and `options`, `EnvConfig`'s keyword arguments.
+    /// `glass_depths`, one reading per environment (`surface`, `through`,
+    /// `missing`), gives each environment's camera its own way of reading
+    /// glass, over the config's `glass_depth`.
     #[new]
-    #[pyo3(signature = (n, category=None, seed=0, copy=false, batch_render=true, config=None, **options))]
+    #[pyo3(signature = (n, category=None, seed=0, copy=false, batch_render=true, config=None, glass_depths=None, **options))]
     #[expect(
         clippy::too_many_arguments,
         reason = "Python keyword arguments, each with a default"
@@ -60,6 +64,7 @@ impl VecEnv {
         copy: bool,
         batch_render: bool,
         config: Option<PyRef<'_, crate::config::EnvConfig>>,
+        glass_depths: Option<Vec<String>>,
         options: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let n = match usize::try_from(n) {
@@ -71,8 +76,32 @@ impl VecEnv {
             }
         };
         let cfg = crate::config::resolve(py, category, config, options)?;
-        let envs = (0..n)
-            .map(|i| TrainEnv::new(cfg.clone(), seed + i as u64))
+        let readings: Vec<GlassDepth> = match glass_depths {
+            None => vec![cfg.glass_depth; n],
+            Some(names) if names.len() != n => {
+                return Err(PyValueError::new_err(format!(
+                    "glass_depths: {} readings for {n} environments",
+                    names.len()
+                )));
+            }
+            Some(names) => names
+                .iter()
+                .map(|name| {
+                    name.parse()
+                        .map_err(|e| PyValueError::new_err(format!("glass_depths: {e}")))
+                })
+                .collect::<PyResult<_>>()?,
+        };
+        let envs = readings
+            .iter()
+            .enumerate()
+            .map(|(i, &glass_depth)| {
+                let cfg = umpnet_eval::train_env::EnvConfig {
+                    glass_depth,
+                    ..cfg.clone()
+                };
+                TrainEnv::new(cfg, seed + i as u64)
+            })
             .collect::<Result<Vec<_>, _>>()
             .map_err(eval_err)?;
         let (h, w) = (cfg.resolution.0 as usize, cfg.resolution.1 as usize);

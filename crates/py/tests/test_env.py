@@ -298,3 +298,15 @@ def test_glass_depth_through_reads_behind_a_glass_door_and_keeps_its_colour(tmp_
     assert np.array_equal(missing["segmentation"][~seen], surface["segmentation"][~seen])
     with pytest.raises(ValueError, match="glass depth `clear`"):
         umpnet.EnvConfig(glass_depth="clear")
+    # A VecEnv's environments may each read glass their own way.
+    config = umpnet.EnvConfig(object_dir=str(glazed), resolution=RES, renderer="cpu")
+    mixed = umpnet.VecEnv(3, config=config, seed=1, copy=True, glass_depths=["surface", "through", "missing"]).reset()
+    plain = umpnet.VecEnv(3, config=config, seed=1, copy=True).reset()
+    for i, expect_door in enumerate([True, False, False]):
+        assert (mixed["segmentation"][i] == door_segment).any() == expect_door, i
+    assert np.array_equal(mixed["image"][0], plain["image"][0])
+    assert np.array_equal(mixed["image"][1][..., rgb], plain["image"][1][..., rgb])
+    with pytest.raises(ValueError, match="2 readings for 3 environments"):
+        umpnet.VecEnv(3, config=config, glass_depths=["surface", "through"])
+    with pytest.raises(ValueError, match="glass_depths: unknown glass depth `opaque`"):
+        umpnet.VecEnv(1, config=config, glass_depths=["opaque"])

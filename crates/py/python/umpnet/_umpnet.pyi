@@ -59,6 +59,7 @@ class VecEnv:
         copy: bool = False,
         batch_render: bool = True,
         config: EnvConfig | None = None,
+        glass_depths: Sequence[str] | None = None,
         **options: Any,
     ) -> None: ...
     def __len__(self) -> int: ...
