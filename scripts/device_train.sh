@@ -13,7 +13,11 @@
 # extension built at home: it is abi3, so any Python >= 3.9 loads it). Set
 # UMPNET_GIT_COMMIT to the commit sent: the copy there may hold a stale .git.
 # TRAIN_ARGS adds flags to the policy run (e.g. TRAIN_ARGS="--mirror 0.25"),
-# JOINT_ARGS to the JointNet's (e.g. JOINT_ARGS="--mirror 0.5").
+# JOINT_ARGS to the JointNet's (e.g. JOINT_ARGS="--mirror 0.5"). POSITION_FROM
+# names the checkpoint whose position net the policy run takes, frozen (default:
+# the shipped umpnet-small's); set it empty to train the position net as well,
+# from scratch or from the checkpoint `--resume` reads (the grasp must train
+# for it to learn from TRAIN_ARGS="--glass-depth-mix P").
 #
 # The lent machine takes the working tree and carried paths up to 64 MiB:
 # carry the extension (crates/py/python/umpnet/_umpnet.abi3.so, 11 MB after
@@ -38,8 +42,9 @@ python3 -m umpnet_train.joint_net --out "$out/joint" --device auto --workers 8 \
   --frames "${FRAMES:-24000}" --steps 12000 --batch 48 --widths 24,48,96,192 --time-limit "$seconds" \
   ${JOINT_ARGS:-} >"$out/joint.log" 2>&1 &
 joint=$!
+position_from=${POSITION_FROM-$root/models/checkpoints/umpnet-small/checkpoint.pt}
 python3 -m umpnet_train.train --preset gpu-medium --dense-labels 16 --renderer cpu --device auto \
-  --position-from "$root/models/checkpoints/umpnet-small/checkpoint.pt" \
+  ${position_from:+--position-from "$position_from"} \
   --out "$out/policy" --time-limit "$seconds" ${TRAIN_ARGS:-} >"$out/policy.log" 2>&1
 policy_rc=$?
 wait $joint

@@ -154,6 +154,26 @@ def test_position_from_another_run_stays_fixed_while_the_direction_nets_train(tm
         assert f"--position-from {path}" in err and message in err, err
 
 
+def test_freeze_direction_trains_the_grasp_alone(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert train.main(["--preset", "smoke", "--out", str(run), "--epochs", "2"]) == 0
+    before = torch.load(run / "checkpoint.pt", weights_only=False)
+    args = ["--preset", "smoke", "--out", str(run), "--epochs", "4", "--resume", "--freeze-direction"]
+    assert train.main(args) == 0
+    after = torch.load(run / "checkpoint.pt", weights_only=False)
+    # Weights and BatchNorm statistics alike: the direction nets ran only to label grasps.
+    frozen = [k for k in after["model"] if not k.startswith("position.")]
+    assert frozen and all(torch.equal(after["model"][k], before["model"][k]) for k in frozen)
+    assert any(
+        not torch.equal(v, before["model"][k]) for k, v in after["model"].items() if k.startswith("position.")
+    ), "the position net did not train"
+    assert after["config"]["freeze_direction"] is True
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        train.main([*args, "--position-from", str(run / "checkpoint.pt")])
+    assert "nothing would train" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("package", ["umpnet-small", "umpnet-gpu-medium"])
 def test_a_shipped_package_is_what_its_committed_checkpoints_export(tmp_path, package):
     """The checkpoints under models/checkpoints are the sources of the shipped

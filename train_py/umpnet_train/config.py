@@ -114,6 +114,11 @@ class Config:
         "the position net is not trained: its weights come from another run (train --position-from)",
         cli=False,
     )
+    freeze_direction: bool = option(
+        False,
+        "the direction nets are not trained, only the position net (a fine-tune of the grasp, e.g. for "
+        "a new sensor); collection still runs them to label the grasps, beyond the paper",
+    )
     # Epsilon-greedy schedules: random actions (and no training of that network)
     # until `*_start_epoch`, then a linear decay over `*_decay_epochs`.
     position_epsilon: tuple[float, float] = option((1.0, 0.1), "position epsilon: start,end")
@@ -245,6 +250,8 @@ def make_config(preset: str = "paper", **overrides) -> Config:
     for share in ("mirror", "glass_depth_mix"):
         if not 0.0 <= float(values.get(share, 0.0)) <= 1.0:
             raise ValueError(f"{share} {values[share]}: expected a share between 0 and 1")
+    if values.get("freeze_position") and values.get("freeze_direction"):
+        raise ValueError("freeze_direction with a frozen position net (--position-from): nothing would train")
     if values.get("inverse_data") and values.get("variant", "umpnet") != "inverse":
         raise ValueError("inverse_data: only the inverse variant collects with another policy's moves")
     cfg_net = values.get("direction_net", "context")

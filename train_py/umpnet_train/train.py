@@ -516,7 +516,7 @@ def main(argv=None) -> int:
             out_l = learner.update(
                 replay, dense, rng,
                 train_position=epoch >= cfg.position_start_epoch and not cfg.freeze_position,
-                train_direction=epoch >= cfg.direction_start_epoch,
+                train_direction=epoch >= cfg.direction_start_epoch and not cfg.freeze_direction,
             )  # fmt: skip
         sched.step()
         stats["learn_s"] += time.perf_counter() - t0
