@@ -32,14 +32,14 @@ impl Renderer for CpuRenderer {
 
     fn render(&mut self, camera: &Camera, part_transforms: &[Mat4]) -> Result<Frame> {
         let (w, h) = super::check_resolution(camera)?;
+        let has_glass = self.meshes.iter().any(RenderMesh::is_glass);
         let WorldTriangles {
             positions,
             triangles,
             owner,
             opaque,
             opaque_owner,
-        } = self.world_triangles(part_transforms);
-        let has_glass = self.meshes.iter().any(RenderMesh::is_glass);
+        } = self.world_triangles(part_transforms, has_glass);
         let k = camera.intrinsics();
         let world_from_camera = camera.world_from_camera();
         let eye = Vec3::from(camera.eye);
@@ -150,7 +150,9 @@ struct OpaqueHit {
 }
 
 impl CpuRenderer {
-    fn world_triangles(&self, part_transforms: &[Mat4]) -> WorldTriangles {
+    /// The scene's triangles in world space; with `has_glass`, the opaque
+    /// ones again apart, for the ray cast behind a pane.
+    fn world_triangles(&self, part_transforms: &[Mat4], has_glass: bool) -> WorldTriangles {
         let mut out = WorldTriangles {
             positions: Vec::new(),
             triangles: Vec::new(),
@@ -158,7 +160,6 @@ impl CpuRenderer {
             opaque: Vec::new(),
             opaque_owner: Vec::new(),
         };
-        let has_glass = self.meshes.iter().any(RenderMesh::is_glass);
         for (mi, m) in self.meshes.iter().enumerate() {
             let t = part_transforms
                 .get(m.part)
