@@ -102,3 +102,14 @@ def test_an_existing_checkpoint_is_kept_without_force(pair, capsys):
     assert (root / "out" / "checkpoint.pt").read_bytes() == b"earlier run"
     assert interpolate.main([str(root / "base.pt"), str(root / "missing.pt"), str(root / "out")]) == 2
     assert "missing.pt: no such checkpoint" in capsys.readouterr().err
+
+
+def test_a_file_that_is_not_a_checkpoint_is_named(pair, capsys):
+    root, _, _ = pair
+    (root / "broken.pt").write_bytes((root / "tuned.pt").read_bytes()[:100])  # a truncated copy
+    assert interpolate.main([str(root / "base.pt"), str(root / "broken.pt"), str(root / "out")]) == 2
+    assert "broken.pt: not a readable checkpoint" in capsys.readouterr().err
+    torch.save({"weights": {}}, root / "foreign.pt")
+    assert interpolate.main([str(root / "foreign.pt"), str(root / "tuned.pt"), str(root / "out")]) == 2
+    assert "foreign.pt: not a umpnet_train checkpoint" in capsys.readouterr().err
+    assert not (root / "out").exists()

@@ -100,7 +100,7 @@ def main(argv=None) -> int:
         print(f"error: {target} exists; pass --force to replace it", file=sys.stderr)
         return 2
     try:
-        base, finetuned = (torch.load(x, map_location="cpu", weights_only=False) for x in (a.base, a.finetuned))
+        base, finetuned = (_load(x) for x in (a.base, a.finetuned))
         for path, ck in ((a.base, base), (a.finetuned, finetuned)):
             if not isinstance(ck, dict) or "model" not in ck:
                 raise InterpolationError(f"{path}: not a umpnet_train checkpoint (no 'model')")
@@ -120,6 +120,13 @@ def main(argv=None) -> int:
         f"{summary['left_out_tensors_that_differ']} tensors of the other networks differ and were taken from BASE"
     )
     return 0
+
+
+def _load(path: Path) -> dict:
+    try:
+        return torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as e:  # a truncated or foreign file: torch raises pickle's and zipfile's errors
+        raise InterpolationError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") from e
 
 
 def _architecture(ck: dict) -> tuple:
